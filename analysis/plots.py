@@ -1,0 +1,72 @@
+"""Plots of a closed-loop run, in mm and mA (what clinicians and valve datasheets use)."""
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only; no display on CI or on a headless workstation
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from maskless.systems.units import a_to_ma, m_to_mm  # noqa: E402
+
+# More points than a figure's pixels only slows rendering; keep every n-th sample past this.
+_MAX_POINTS = 4000
+
+
+def _thin(times, values):
+    step = max(1, len(times) // _MAX_POINTS)
+    return times[::step], values[::step]
+
+
+def plot_closed_loop(
+    path: str | Path,
+    *,
+    times_s: np.ndarray,
+    reference_m: np.ndarray,
+    head_m: np.ndarray,
+    local_tracks_m: dict[str, np.ndarray],
+    fused_m: np.ndarray,
+    command_times_s: np.ndarray,
+    command_a: np.ndarray,
+    title: str,
+    tolerance_m: float | None = None,
+) -> Path:
+    """Heights (reference, true head, each local track, fused track) above the valve command, on a
+    shared time axis. All height arrays are sampled at ``times_s``. Returns the written path."""
+    path = Path(path)
+    figure, (heights, command) = plt.subplots(
+        2, 1, sharex=True, figsize=(10, 6.5), height_ratios=[3, 1], constrained_layout=True
+    )
+    for name, track in local_tracks_m.items():
+        heights.plot(
+            *_thin(times_s, m_to_mm(track)), lw=0.7, alpha=0.6, label=f"{name} local track"
+        )
+    heights.plot(*_thin(times_s, m_to_mm(fused_m)), lw=1.0, color="tab:purple", label="fused track")
+    heights.plot(*_thin(times_s, m_to_mm(head_m)), lw=1.8, color="black", label="true head height")
+    heights.plot(
+        *_thin(times_s, m_to_mm(reference_m)), lw=1.4, ls="--", color="tab:red", label="reference"
+    )
+    if tolerance_m is not None:
+        t, r = _thin(times_s, m_to_mm(reference_m))
+        band = m_to_mm(tolerance_m)
+        heights.fill_between(
+            t,
+            r - band,
+            r + band,
+            color="tab:red",
+            alpha=0.08,
+            step="post",
+            label=f"±{band:g} mm band",
+        )
+    heights.set_ylabel("height above table (mm)")
+    heights.set_title(title)
+    heights.legend(loc="best", fontsize=8, ncol=2)
+    heights.grid(alpha=0.3)
+    command.step(*_thin(command_times_s, a_to_ma(command_a)), where="post", color="tab:green")
+    command.set_ylabel("valve current (mA)")
+    command.set_xlabel("time (s)")
+    command.grid(alpha=0.3)
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+    return path

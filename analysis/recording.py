@@ -1,0 +1,547 @@
+"""Write and read the MCAP recordings of a closed-loop simulation.
+
+Every topic carries JSON messages (``message_encoding`` ``"json"``) described by a ``"jsonschema"``
+schema. ``log_time`` and ``publish_time`` are *simulated* time in integer nanoseconds, not wall
+clock, so a recording of the same simulation is byte-for-byte reproducible.
+
+The writer takes whole columns (the arrays a Drake ``VectorLogSink`` hands back) rather than single
+messages, because converting column-wise with ``ndarray.tolist()`` is far cheaper than touching
+numpy scalars once per message.
+
+Files are written *unchunked*: each message is a record of its own on disk. That costs a little
+space, but a file whose writer died (or that was cut at any byte) can be read back up to its last
+complete message, which a chunked file cannot promise (a whole chunk would be lost).
+"""
+
+from __future__ import annotations
+
+import copy
+import errno
+import io
+import json
+import re
+import struct
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from os import PathLike
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from mcap.exceptions import EndOfFile, McapError
+from mcap.records import Channel as McapChannel
+from mcap.records import Message as McapMessage
+from mcap.stream_reader import StreamReader
+from mcap.writer import CompressionType, IndexType, Writer
+
+__all__ = [
+    "COMMAND_TOPIC",
+    "FUSION_TOPIC",
+    "HEAD_POSITION_TOPIC",
+    "MESSAGE_ENCODING",
+    "REFERENCE_TOPIC",
+    "SCHEMA_ENCODING",
+    "Channel",
+    "Recording",
+    "TruncatedRecordingWarning",
+    "filter_estimate_topic",
+    "read_recording",
+    "schema_for_topic",
+    "sensor_measurement_topic",
+    "write_recording",
+]
+
+MESSAGE_ENCODING = "json"
+SCHEMA_ENCODING = "jsonschema"
+LIBRARY = "maskless"
+PROFILE = ""
+
+REFERENCE_TOPIC = "/reference"
+HEAD_POSITION_TOPIC = "/plant/head_position"
+FUSION_TOPIC = "/fusion/estimate"
+COMMAND_TOPIC = "/controller/command"
+
+# The MCAP magic that opens (and closes) every file.
+_MAGIC = b"\x89MCAP0\r\n"
+
+# Sensor names become one path segment of a topic, so they must not contain "/" or spaces.
+_SENSOR_NAME = re.compile(r"[A-Za-z0-9_]+")
+_SENSOR_TOPIC = re.compile(r"/sensors/([A-Za-z0-9_]+)/measurement")
+_FILTER_TOPIC = re.compile(r"/filters/([A-Za-z0-9_]+)/estimate")
+
+_NUMBER = "number"
+_BOOLEAN = "boolean"
+
+_COVARIANCE_SCHEMA: dict[str, Any] = {
+    "type": "array",
+    "description": (
+        "2x2 state covariance, row-major [[P_pp, P_pv], [P_vp, P_vv]]; units "
+        "[[m^2, m^2/s], [m^2/s, m^2/s^2]]"
+    ),
+    "minItems": 2,
+    "maxItems": 2,
+    "items": {
+        "type": "array",
+        "minItems": 2,
+        "maxItems": 2,
+        "items": {"type": "number"},
+    },
+}
+
+
+def _object_schema(title: str, description: str, properties: dict[str, Any]) -> dict[str, Any]:
+    """Builds a closed JSON Schema object whose properties are all required."""
+    return {
+        "title": title,
+        "description": description,
+        "type": "object",
+        "properties": properties,
+        "required": list(properties),
+        "additionalProperties": False,
+    }
+
+
+_SCHEMAS: dict[str, dict[str, Any]] = {
+    "maskless.Reference": _object_schema(
+        "maskless.Reference",
+        "Head-position set point. Units: metres (m).",
+        {"reference_m": {"type": "number", "description": "set point (m)"}},
+    ),
+    "maskless.HeadPosition": _object_schema(
+        "maskless.HeadPosition",
+        "True head position from the plant model. Units: metres (m).",
+        {"head_position_m": {"type": "number", "description": "head position (m)"}},
+    ),
+    "maskless.DepthMeasurement": _object_schema(
+        "maskless.DepthMeasurement",
+        "One depth-camera distance reading. Units: metres (m); valid is unitless.",
+        {
+            "distance_m": {"type": "number", "description": "measured distance (m)"},
+            "valid": {
+                "type": "boolean",
+                "description": "false when the sensor returned no usable depth",
+            },
+        },
+    ),
+    "maskless.StateEstimate": _object_schema(
+        "maskless.StateEstimate",
+        "Kalman-filter state estimate. Units: position m, velocity m/s, covariance SI "
+        "([[m^2, m^2/s], [m^2/s, m^2/s^2]]).",
+        {
+            "position_m": {"type": "number", "description": "estimated position (m)"},
+            "velocity_m_s": {"type": "number", "description": "estimated velocity (m/s)"},
+            "covariance": _COVARIANCE_SCHEMA,
+        },
+    ),
+    "maskless.ValveCommand": _object_schema(
+        "maskless.ValveCommand",
+        "Proportional-valve command from the controller. Units: amperes (A).",
+        {"current_a": {"type": "number", "description": "valve coil current (A)"}},
+    ),
+}
+
+_FIXED_TOPIC_SCHEMAS: dict[str, str] = {
+    REFERENCE_TOPIC: "maskless.Reference",
+    HEAD_POSITION_TOPIC: "maskless.HeadPosition",
+    FUSION_TOPIC: "maskless.StateEstimate",
+    COMMAND_TOPIC: "maskless.ValveCommand",
+}
+
+
+def sensor_measurement_topic(name: str) -> str:
+    """Returns the measurement topic of a depth sensor.
+
+    Args:
+        name: Sensor name, e.g. ``"kinect_v1"`` (letters, digits and underscores only).
+
+    Returns:
+        ``"/sensors/{name}/measurement"``.
+
+    Raises:
+        ValueError: If ``name`` is empty or contains other characters.
+    """
+    _check_sensor_name(name)
+    return f"/sensors/{name}/measurement"
+
+
+def filter_estimate_topic(name: str) -> str:
+    """Returns the topic of the per-sensor filter estimate.
+
+    Args:
+        name: Sensor name, e.g. ``"kinect_v1"`` (letters, digits and underscores only).
+
+    Returns:
+        ``"/filters/{name}/estimate"``.
+
+    Raises:
+        ValueError: If ``name`` is empty or contains other characters.
+    """
+    _check_sensor_name(name)
+    return f"/filters/{name}/estimate"
+
+
+def _check_sensor_name(name: str) -> None:
+    if not isinstance(name, str) or _SENSOR_NAME.fullmatch(name) is None:
+        raise ValueError(f"invalid sensor name {name!r}: use letters, digits and underscores only")
+
+
+def _schema_name_for_topic(topic: str) -> str:
+    if topic in _FIXED_TOPIC_SCHEMAS:
+        return _FIXED_TOPIC_SCHEMAS[topic]
+    if _SENSOR_TOPIC.fullmatch(topic):
+        return "maskless.DepthMeasurement"
+    if _FILTER_TOPIC.fullmatch(topic):
+        return "maskless.StateEstimate"
+    raise ValueError(f"unknown topic {topic!r}: no schema is defined for it")
+
+
+def schema_for_topic(topic: str) -> tuple[str, dict[str, Any]]:
+    """Returns the schema of a topic.
+
+    Args:
+        topic: A topic such as ``REFERENCE_TOPIC`` or ``sensor_measurement_topic("kinect_v1")``.
+
+    Returns:
+        ``(schema_name, schema)``, where ``schema`` is a JSON Schema dict (a copy, safe to
+        modify) whose ``description`` gives the units.
+
+    Raises:
+        ValueError: If the topic is unknown; the message names the topic.
+    """
+    name = _schema_name_for_topic(topic)
+    return name, copy.deepcopy(_SCHEMAS[name])
+
+
+# eq=False: fields hold arrays, so field-wise == and hashing would fail.
+@dataclass(frozen=True, eq=False)
+class Channel:
+    """The samples of one topic, as columns.
+
+    Attributes:
+        topic: Topic name, e.g. ``FUSION_TOPIC``.
+        times_ns: 1-D integer array of simulated times (ns), non-decreasing; one per message.
+        columns: Field name -> values. Every field is a 1-D array of length ``len(times_ns)``
+            except ``"covariance"``, which is an ``(n, 2, 2)`` array. Units are those in the field
+            names (m, m/s, A, ...).
+    """
+
+    topic: str
+    times_ns: np.ndarray
+    columns: Mapping[str, np.ndarray]
+
+
+@dataclass
+class Recording:
+    """The messages read back from a recording.
+
+    Attributes:
+        messages: Topic -> list of ``(log_time_ns, payload)`` in file order. Topics that were
+            recorded without messages map to an empty list.
+        truncated: True if the file ended (or broke) before its footer, so only the messages up
+            to the last complete one are present.
+    """
+
+    messages: dict[str, list[tuple[int, dict[str, Any]]]] = field(default_factory=dict)
+    truncated: bool = False
+
+    def topic_arrays(self, topic: str, field: str) -> tuple[np.ndarray, np.ndarray]:
+        """Returns one field of one topic as arrays.
+
+        Args:
+            topic: Topic name.
+            field: Field name, e.g. ``"position_m"``.
+
+        Returns:
+            ``(times_ns, values)``: ``times_ns`` is int64 (ns); ``values`` is float64 for numbers
+            (in the field's unit), bool for booleans, and ``(n, 2, 2)`` float64 for
+            ``"covariance"``.
+
+        Raises:
+            KeyError: If the topic is not in the recording or a message lacks the field.
+        """
+        if topic not in self.messages:
+            raise KeyError(f"topic {topic!r} not in recording (topics: {sorted(self.messages)})")
+        entries = self.messages[topic]
+        times_ns = np.fromiter((t for t, _ in entries), dtype=np.int64, count=len(entries))
+        try:
+            raw = [payload[field] for _, payload in entries]
+        except KeyError:
+            raise KeyError(f"field {field!r} missing from messages on topic {topic!r}") from None
+        dtype, tail_shape = _field_layout(topic, field)
+        if not raw:
+            return times_ns, np.empty((0, *tail_shape), dtype=dtype or np.float64)
+        return times_ns, np.asarray(raw, dtype=dtype)
+
+
+def _field_layout(topic: str, field: str) -> tuple[type | None, tuple[int, ...]]:
+    """Returns (dtype, per-message shape) of a field; dtype None lets numpy infer it."""
+    try:
+        _, schema = schema_for_topic(topic)
+    except ValueError:
+        # A topic this version does not know: let numpy infer from the values.
+        return None, ()
+    prop = schema["properties"].get(field)
+    if prop is None:
+        return None, ()
+    if prop["type"] == _BOOLEAN:
+        return bool, ()
+    if prop["type"] == "array":
+        return np.float64, (2, 2)
+    return np.float64, ()
+
+
+def _prepare_channel(channel: Channel) -> tuple[np.ndarray, list[str], list[list[Any]]]:
+    """Validates one channel and converts its columns to Python lists in schema field order.
+
+    Returns:
+        ``(times_ns, field_names, column_lists)``.
+    """
+    topic = channel.topic
+    _, schema = schema_for_topic(topic)
+    required = schema["required"]
+
+    times = np.asarray(channel.times_ns)
+    if times.ndim != 1:
+        raise ValueError(f"topic {topic!r}: times_ns must be 1-D, got shape {times.shape}")
+    if times.size and not np.issubdtype(times.dtype, np.integer):
+        raise ValueError(f"topic {topic!r}: times_ns must be integer ns, got {times.dtype}")
+    times = times.astype(np.int64, copy=False)
+    n = times.shape[0]
+    if n and times[0] < 0:
+        # MCAP stores times as unsigned 64-bit integers.
+        raise ValueError(f"topic {topic!r}: times_ns must be >= 0, got {int(times[0])}")
+    if n > 1 and np.any(np.diff(times) < 0):
+        first = int(np.argmax(np.diff(times) < 0)) + 1
+        raise ValueError(
+            f"topic {topic!r}: times_ns must be non-decreasing (index {first} goes back in time)"
+        )
+
+    names = set(channel.columns)
+    missing = [f for f in required if f not in names]
+    unknown = sorted(names - set(required))
+    if missing or unknown:
+        raise ValueError(
+            f"topic {topic!r}: columns must be exactly {required}; "
+            f"missing {missing}, unknown {unknown}"
+        )
+
+    lists: list[list[Any]] = []
+    for name in required:
+        kind = schema["properties"][name]["type"]
+        values = np.asarray(channel.columns[name])
+        expected_shape = (n, 2, 2) if kind == "array" else (n,)
+        if values.shape != expected_shape:
+            raise ValueError(
+                f"topic {topic!r}: column {name!r} has shape {values.shape}, expected "
+                f"{expected_shape} (one value per entry of times_ns)"
+            )
+        # astype + tolist gives Python float/bool objects in one vectorised step, the same values
+        # float()/bool() would give, without per-message numpy scalar overhead.
+        dtype = bool if kind == _BOOLEAN else np.float64
+        lists.append(values.astype(dtype, copy=False).tolist())
+    return times, list(required), lists
+
+
+def write_recording(path: str | PathLike[str], channels: Sequence[Channel]) -> None:
+    """Writes a simulation recording as MCAP.
+
+    All channels are validated before the file is opened, so a bad input never leaves a partial
+    file behind. Messages of all channels are merged in increasing log time (ties keep the order of
+    ``channels``) and encoded with compact ``json.dumps``, so the same arrays always give the same
+    bytes.
+
+    Args:
+        path: Output file; overwritten if it exists.
+        channels: One ``Channel`` per topic. Each topic may appear only once; a channel with no
+            samples is still registered, so its topic appears in the file.
+
+    Raises:
+        ValueError: If a topic is unknown or repeated, a column has the wrong length or shape, the
+            field names are not exactly the schema's required fields, or the times are not
+            non-decreasing integers (ns). The message names the topic and field.
+    """
+    seen: set[str] = set()
+    prepared = []
+    for channel in channels:
+        if channel.topic in seen:
+            raise ValueError(f"topic {channel.topic!r} appears more than once in channels")
+        seen.add(channel.topic)
+        prepared.append(_prepare_channel(channel))
+
+    # Encode every payload up front (column lists, no numpy scalars).
+    payloads: list[list[bytes]] = []
+    for _, names, lists in prepared:
+        payloads.append(
+            [
+                json.dumps(dict(zip(names, row, strict=True)), separators=(",", ":")).encode()
+                for row in zip(*lists, strict=True)
+            ]
+        )
+
+    # A stable sort over the channels concatenated in order keeps ties in the order of `channels`
+    # and, within a channel, in sample order.
+    all_times = np.concatenate([t for t, _, _ in prepared] or [np.empty(0, np.int64)])
+    channel_index = np.concatenate(
+        [np.full(t.shape[0], i, dtype=np.int64) for i, (t, _, _) in enumerate(prepared)]
+        or [np.empty(0, np.int64)]
+    )
+    row_index = np.concatenate(
+        [np.arange(t.shape[0], dtype=np.int64) for t, _, _ in prepared] or [np.empty(0, np.int64)]
+    )
+    order = np.argsort(all_times, kind="stable")
+    times_sorted = all_times[order].tolist()
+    channels_sorted = channel_index[order].tolist()
+    rows_sorted = row_index[order].tolist()
+
+    with open(Path(path), "wb") as stream:
+        writer = Writer(
+            stream,
+            compression=CompressionType.NONE,
+            # Unchunked, so every complete message survives a crash; without chunks there is no
+            # message or chunk index to write.
+            use_chunking=False,
+            index_types=IndexType.NONE,
+            enable_data_crcs=True,
+        )
+        writer.start(profile=PROFILE, library=LIBRARY)
+        schema_ids: dict[str, int] = {}
+        channel_ids: list[int] = []
+        for channel in channels:
+            schema_name, schema = schema_for_topic(channel.topic)
+            if schema_name not in schema_ids:
+                schema_ids[schema_name] = writer.register_schema(
+                    name=schema_name,
+                    encoding=SCHEMA_ENCODING,
+                    data=json.dumps(schema, separators=(",", ":")).encode(),
+                )
+            channel_ids.append(
+                writer.register_channel(
+                    topic=channel.topic,
+                    message_encoding=MESSAGE_ENCODING,
+                    schema_id=schema_ids[schema_name],
+                )
+            )
+        add_message = writer.add_message
+        for t, c, r in zip(times_sorted, channels_sorted, rows_sorted, strict=True):
+            add_message(
+                channel_id=channel_ids[c],
+                log_time=t,
+                data=payloads[c][r],
+                publish_time=t,
+                # The sequence counter wraps at 2**32 (uint32 in MCAP).
+                sequence=r & 0xFFFFFFFF,
+            )
+        writer.finish()
+
+
+class TruncatedRecordingWarning(RuntimeWarning):
+    """A recording ended or broke before its footer; only a prefix of it was read."""
+
+
+class _StrictBytesIO(io.BytesIO):
+    """A BytesIO whose short reads raise ``EndOfFile``.
+
+    The upstream stream only raises on an *empty* read; a read cut short inside a record would
+    surface later as a struct or UTF-8 error from a half-read field. Raising at the cut makes every
+    truncation look the same and guarantees no partial record is ever decoded.
+    """
+
+    def read(self, size: int | None = -1) -> bytes:
+        data = super().read(size)
+        if size is not None and size >= 0 and len(data) < size:
+            raise EndOfFile()
+        return data
+
+
+# Errors that mean "the bytes stop making sense here": a cut, or a corrupt tail.
+_READ_ERRORS = (McapError, ValueError, EOFError, struct.error)
+
+
+def read_recording(path: str | PathLike[str]) -> Recording:
+    """Reads a recording, recovering what it can from a cut-off file.
+
+    The file is read front to back with a streaming reader (no index or footer needed). At the
+    first error after the magic bytes (a cut, or a corrupt record) reading stops, ``truncated`` is
+    set and a ``TruncatedRecordingWarning`` names the file and the number of messages recovered.
+    Every message returned is complete. A file shorter than the magic whose bytes match it (a
+    writer that died at once) reads as an empty, truncated recording.
+
+    Args:
+        path: The MCAP file.
+
+    Returns:
+        The messages by topic, in file order, with ``log_time`` in simulated ns.
+
+    Raises:
+        FileNotFoundError: If the file does not exist.
+        ValueError: If the file is not MCAP (bad magic), or a channel's message encoding is not
+            ``"json"`` (the message names topic and file).
+    """
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError as exc:
+        raise FileNotFoundError(errno.ENOENT, "MCAP recording not found", str(path)) from exc
+
+    head = data[: len(_MAGIC)]
+    if head != _MAGIC[: len(head)]:
+        raise ValueError(f"{path} is not an MCAP file (bad magic bytes {head!r})")
+
+    recording = Recording()
+    channels: dict[int, McapChannel] = {}
+    count = 0
+    error: Exception | None = None
+    if len(head) < len(_MAGIC):
+        error = EndOfFile("file ends inside the magic bytes")
+    else:
+        reader = StreamReader(
+            _StrictBytesIO(data),
+            validate_crcs=True,
+            # No record can be longer than the file; this stops a corrupt length early.
+            record_size_limit=len(data),
+        )
+        records = reader.records
+        while True:
+            try:
+                record = next(records)
+            except StopIteration:
+                break
+            except _READ_ERRORS as exc:
+                error = exc
+                break
+            if isinstance(record, McapChannel):
+                channels[record.id] = record
+                recording.messages.setdefault(record.topic, [])
+            elif isinstance(record, McapMessage):
+                _append_message(recording, channels, record, path)
+                count += 1
+
+    if error is not None:
+        recording.truncated = True
+        reason = str(error) or "file ends before its footer"
+        warnings.warn(
+            f"{path}: recording is truncated or corrupt ({reason}); "
+            f"recovered {count} complete messages",
+            TruncatedRecordingWarning,
+            stacklevel=2,
+        )
+    return recording
+
+
+def _append_message(
+    recording: Recording,
+    channels: Mapping[int, McapChannel],
+    message: McapMessage,
+    path: Path,
+) -> None:
+    """Decodes one message and appends it to its topic's list."""
+    channel = channels.get(message.channel_id)
+    if channel is None:
+        raise ValueError(f"{path}: message refers to unknown channel id {message.channel_id}")
+    if channel.message_encoding != MESSAGE_ENCODING:
+        raise ValueError(
+            f"{path}: topic {channel.topic!r} has message encoding "
+            f"{channel.message_encoding!r}, expected {MESSAGE_ENCODING!r}"
+        )
+    recording.messages[channel.topic].append((message.log_time, json.loads(message.data)))

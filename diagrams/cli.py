@@ -1,0 +1,35 @@
+"""maskless: simulate, identify and control a soft-robot head positioner for mask-free head-and-neck
+radiotherapy. Each subcommand's --help says more."""
+
+import argparse
+import sys
+
+from maskless.assets.loader import ConfigError
+from maskless.diagrams import simulate
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="maskless", description=__doc__)
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    simulate_parser = commands.add_parser(
+        "simulate",
+        help="simulate the closed loop, record it and summarise it",
+        description=simulate.__doc__,
+    )
+    simulate.add_arguments(simulate_parser)
+    simulate_parser.set_defaults(handler=simulate.run_command)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the `maskless` console script."""
+    args = build_parser().parse_args(argv)
+    try:
+        return args.handler(args)
+    except (ConfigError, FileNotFoundError) as error:
+        print(f"maskless {args.command}: error: {error}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,182 @@
+"""The paper's closed loop as one named Drake Diagram.
+
+reference -> LQG controller -> valve limits -> paper plant -> head height -> kinect_v1, kinect_v2
+-> local Kalman filters -> track-to-track fusion -> fused height -> LQG controller.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import MatrixGain, Saturation, TrajectorySource, VectorLogSink
+from pydrake.trajectories import PiecewisePolynomial
+
+from maskless.diagrams.config import ReferenceConfig, SimulationConfig
+from maskless.systems.depth_sensor import make_depth_sensor
+from maskless.systems.local_kalman_filter import make_local_kalman_filter
+from maskless.systems.lqg_controller import LqgDesign, design_lqg, make_lqg_controller
+from maskless.systems.paper_parameters import (
+    IdentifiedModel,
+    paper_filter_variances_si,
+    paper_identified_model,
+    paper_lqg_weights,
+)
+from maskless.systems.paper_plant import make_paper_plant, operating_head_height_m
+from maskless.systems.track_fusion import make_track_fusion
+from maskless.systems.units import ma_to_a
+
+# Far beyond any run, so the last reference value holds for the rest of the simulation.
+_REFERENCE_HOLD_S = 1.0e9
+
+
+@dataclass
+class ClosedLoop:
+    """A built closed loop and what a caller needs to read it.
+
+    Attributes:
+        diagram: the Diagram, named "paper_closed_loop".
+        loggers: VectorLogSinks by signal name (empty when built without recording).
+        model: the plant model the controller was designed on.
+        design: the controller's gains.
+        start_height_m: head height above the table at t = 0 (m).
+        sensor_names: the cameras, in order.
+    """
+
+    diagram: Diagram
+    model: IdentifiedModel
+    design: LqgDesign
+    start_height_m: float
+    sensor_names: list[str]
+    loggers: dict[str, VectorLogSink] = field(default_factory=dict)
+
+
+def make_reference_trajectory(reference: ReferenceConfig, start_height_m: float):
+    """The reference as a zero-order-hold trajectory of absolute heights (m)."""
+    times = [0.0, *reference.step_times_s, _REFERENCE_HOLD_S]
+    heights = [start_height_m] + [start_height_m + o for o in reference.step_offsets_m]
+    heights.append(heights[-1])
+    return PiecewisePolynomial.ZeroOrderHold(times, np.array(heights).reshape(1, -1))
+
+
+def build_paper_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLoop:
+    """Wires the paper's whole chain for ``config``.
+
+    Args:
+        config: a validated SimulationConfig.
+        record: add VectorLogSinks for every recorded signal (the core-speed benchmark omits them).
+
+    Exported outputs: ``reference_head_height_m``, ``head_height_m``, ``valve_current_a``,
+    ``fusion.estimated_state``, ``fusion.covariance``, and for each camera ``{name}.distance_m``,
+    ``{name}.valid``, ``{name}_filter.estimated_state`` and ``{name}_filter.covariance``.
+    """
+    paper = config.paper
+    model = paper_identified_model(paper)
+    design = design_lqg(model, paper_lqg_weights(paper))
+    # The model was identified on the fused distance in the Kinect v2 frame (Sec. III-B).
+    model_camera_height_m = config.kinect_v2.mount_height_m
+    start_height_m = operating_head_height_m(model, model_camera_height_m)
+    variances = paper_filter_variances_si(paper)
+    saturation_current_a = ma_to_a(paper.valve_saturation_current_ma)
+
+    builder = DiagramBuilder()
+    reference = builder.AddNamedSystem(
+        "reference",
+        TrajectorySource(make_reference_trajectory(config.reference, start_height_m)),
+    )
+    controller = builder.AddSystem(
+        make_lqg_controller(model, design, model_camera_height_m, name="paper_lqg")
+    )
+    limits = builder.AddNamedSystem(
+        "valve_current_limits", Saturation([0.0], [saturation_current_a])
+    )
+    plant = builder.AddSystem(
+        make_paper_plant(
+            model,
+            model_camera_height_m,
+            ma_to_a(paper.valve_starting_current_ma),
+            saturation_current_a,
+            name="paper_plant",
+        )
+    )
+    sensor_names = list(config.sensors())
+    fusion_inputs = []
+    filters = {}
+    sensors = {}
+    for name, sensor_config in config.sensors().items():
+        sensor = builder.AddSystem(make_depth_sensor(name, sensor_config))
+        local_filter = builder.AddSystem(
+            make_local_kalman_filter(
+                f"{name}_filter",
+                camera_height_m=sensor_config.mount_height_m,
+                frame_period_s=1.0 / sensor_config.frame_rate_hz,
+                acceleration_variance_m2_s4=variances["acceleration_variance_m2_s4"],
+                measurement_variance_m2=variances[name],
+                initial_height_m=start_height_m,
+                config=config.local_filter,
+            )
+        )
+        builder.Connect(plant.GetOutputPort("head_height_m"), sensor.GetInputPort("head_height_m"))
+        for port in ("distance_m", "valid"):
+            builder.Connect(sensor.GetOutputPort(port), local_filter.GetInputPort(port))
+        sensors[name], filters[name] = sensor, local_filter
+        fusion_inputs.append(name)
+    fusion = builder.AddSystem(make_track_fusion(fusion_inputs, name="fusion"))
+    for name, local_filter in filters.items():
+        for port in ("estimated_state", "covariance"):
+            builder.Connect(local_filter.GetOutputPort(port), fusion.GetInputPort(f"{name}_{port}"))
+    fused_height = builder.AddNamedSystem("fused_height", MatrixGain(np.array([[1.0, 0.0]])))
+    builder.Connect(fusion.GetOutputPort("estimated_state"), fused_height.get_input_port())
+    builder.Connect(
+        fused_height.get_output_port(), controller.GetInputPort("measured_head_height_m")
+    )
+    builder.Connect(reference.get_output_port(), controller.GetInputPort("reference_head_height_m"))
+    builder.Connect(controller.GetOutputPort("valve_current_a"), limits.get_input_port())
+    builder.Connect(limits.get_output_port(), plant.GetInputPort("valve_current_a"))
+    builder.Connect(limits.get_output_port(), controller.GetInputPort("applied_current_a"))
+
+    exported = {
+        "reference_head_height_m": reference.get_output_port(),
+        "head_height_m": plant.GetOutputPort("head_height_m"),
+        "valve_current_a": limits.get_output_port(),
+        "fusion.estimated_state": fusion.GetOutputPort("estimated_state"),
+        "fusion.covariance": fusion.GetOutputPort("covariance"),
+    }
+    for name in sensor_names:
+        for port in ("distance_m", "valid"):
+            exported[f"{name}.{port}"] = sensors[name].GetOutputPort(port)
+        for port in ("estimated_state", "covariance"):
+            exported[f"{name}_filter.{port}"] = filters[name].GetOutputPort(port)
+    for port_name, port in exported.items():
+        builder.ExportOutput(port, port_name)
+
+    loggers = {}
+    if record:
+        period_s = model.sample_period_s
+        logged = {
+            "reference": (exported["reference_head_height_m"], period_s),
+            "head_height": (exported["head_height_m"], period_s),
+            "command": (exported["valve_current_a"], period_s),
+            "fusion.estimated_state": (exported["fusion.estimated_state"], period_s),
+            "fusion.covariance": (exported["fusion.covariance"], period_s),
+        }
+        for name in sensor_names:
+            frame_period_s = 1.0 / config.sensors()[name].frame_rate_hz
+            for port in ("distance_m", "valid"):
+                logged[f"{name}.{port}"] = (exported[f"{name}.{port}"], frame_period_s)
+            for port in ("estimated_state", "covariance"):
+                logged[f"{name}_filter.{port}"] = (exported[f"{name}_filter.{port}"], period_s)
+        for signal, (port, log_period_s) in logged.items():
+            sink = builder.AddNamedSystem(f"log:{signal}", VectorLogSink(port.size(), log_period_s))
+            builder.Connect(port, sink.get_input_port())
+            loggers[signal] = sink
+
+    diagram = builder.Build()
+    diagram.set_name("paper_closed_loop")
+    return ClosedLoop(
+        diagram=diagram,
+        model=model,
+        design=design,
+        start_height_m=start_height_m,
+        sensor_names=sensor_names,
+        loggers=loggers,
+    )

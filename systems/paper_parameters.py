@@ -1,0 +1,124 @@
+"""The seed paper's parameters: read as printed from assets/paper.yaml, converted to SI here.
+
+This is the one place where the paper's mm, mm² and mA become m, m² and A.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from maskless.assets.loader import UNSET, asset_path, load_config
+from maskless.systems.units import MA_PER_A, MM_PER_M, ma_to_a, mm2_to_m2, mm_to_m
+
+
+@dataclass
+class PaperParameters:
+    """The paper's numbers exactly as printed; see assets/paper.yaml for the source of each."""
+
+    acceleration_variance_mm2: float = UNSET
+    measurement_variance_kinect_v1_mm2: float = UNSET
+    measurement_variance_kinect_v2_mm2: float = UNSET
+    noise_autocovariance_kinect_v1_mm2: float = UNSET
+    noise_autocovariance_kinect_v2_mm2: float = UNSET
+    vision_frame_rate_hz: float = UNSET
+    sample_period_s: float = UNSET
+    A: list[list[float]] = field(default_factory=list)
+    B_mm_per_ma: list[float] = field(default_factory=list)
+    C: list[float] = field(default_factory=list)
+    D: float = UNSET
+    K: list[float] = field(default_factory=list)
+    operating_distance_mm: float = UNSET
+    operating_current_ma: float = UNSET
+    valve_starting_current_ma: float = UNSET
+    valve_saturation_current_ma: float = UNSET
+    lqr_Q_diagonal: float = UNSET
+    lqr_R: float = UNSET
+    estimator_Qe_diagonal: float = UNSET
+    estimator_Re: float = UNSET
+    reported_fused_std_mm: float = UNSET
+    reported_tracking_band_mm: float = UNSET
+    reported_overshoot_mm: float = UNSET
+    reported_settle_time_s: float = UNSET
+
+
+def load_paper_parameters() -> PaperParameters:
+    """The shipped paper parameters (assets/paper.yaml)."""
+    return load_config(PaperParameters, asset_path("paper.yaml"))
+
+
+@dataclass(frozen=True)
+class IdentifiedModel:
+    """A discrete innovations-form model x+ = A x + B u + K e, y = C x + D u + e, in SI.
+
+    Attributes:
+        A, B, C, D, K: the matrices; x and y in m, u in A (B in m/A).
+        sample_period_s: Ts.
+        operating_output_m: the output (camera-to-head distance) the model is linearised around.
+        operating_input_a: the valve current the model is linearised around.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    K: np.ndarray
+    sample_period_s: float
+    operating_output_m: float
+    operating_input_a: float
+
+    def dc_gain_m_per_a(self) -> float:
+        """Steady-state output change per unit input change, C (I - A)⁻¹ B + D."""
+        n = self.A.shape[0]
+        return float((self.C @ np.linalg.solve(np.eye(n) - self.A, self.B) + self.D)[0, 0])
+
+
+def paper_identified_model(paper: PaperParameters) -> IdentifiedModel:
+    """Eq. 25-26 in SI. x is in mm in the paper; scaling x and y by 1/1000 keeps A, C, K, and
+    B (mm/mA) becomes m/A with the same digits, which the conversion below makes explicit."""
+    b_m_per_a = mm_to_m(np.asarray(paper.B_mm_per_ma, float)) * MA_PER_A
+    return IdentifiedModel(
+        A=np.asarray(paper.A, float).reshape(2, 2),
+        B=b_m_per_a.reshape(2, 1),
+        C=np.asarray(paper.C, float).reshape(1, 2),
+        D=np.array([[mm_to_m(paper.D) * MA_PER_A]]),
+        K=np.asarray(paper.K, float).reshape(2, 1),
+        sample_period_s=paper.sample_period_s,
+        operating_output_m=mm_to_m(paper.operating_distance_mm),
+        operating_input_a=ma_to_a(paper.operating_current_ma),
+    )
+
+
+@dataclass(frozen=True)
+class LqgWeights:
+    """LQR weights and estimator noise covariances in SI.
+
+    Attributes:
+        Q: state weight, 1/m² (cost-preserving: x in mm -> m multiplies Q by 1000²).
+        R: input weight, 1/A² (u in mA -> A multiplies R by 1000²).
+        W: process-noise covariance of the estimator, m².
+        V: measurement-noise covariance of the estimator, m².
+    """
+
+    Q: np.ndarray
+    R: np.ndarray
+    W: np.ndarray
+    V: np.ndarray
+
+
+def paper_lqg_weights(paper: PaperParameters) -> LqgWeights:
+    """Eq. 30 and the estimator variances (Qe, Re) of Sec. V, in SI."""
+    return LqgWeights(
+        Q=np.eye(2) * paper.lqr_Q_diagonal * MM_PER_M**2,
+        R=np.array([[paper.lqr_R * MA_PER_A**2]]),
+        W=np.eye(2) * mm2_to_m2(paper.estimator_Qe_diagonal),
+        V=np.array([[mm2_to_m2(paper.estimator_Re)]]),
+    )
+
+
+def paper_filter_variances_si(paper: PaperParameters) -> dict[str, float]:
+    """The local filters' variances in SI: acceleration (m²/s⁴) and each sensor's (m²)."""
+    return {
+        "acceleration_variance_m2_s4": mm2_to_m2(paper.acceleration_variance_mm2),
+        "kinect_v1": mm2_to_m2(paper.measurement_variance_kinect_v1_mm2),
+        "kinect_v2": mm2_to_m2(paper.measurement_variance_kinect_v2_mm2),
+    }

@@ -1,0 +1,70 @@
+"""The paper's identified plant (Eq. 25-26) behind the static valve map: the "paper" plant.
+
+x(k+1) = A x(k) + B (g(i(k)) - i_op), distance(k) = d_op + C x(k), where g is the valve map and the
+model's output is the fused camera-to-head distance in the Kinect v2 frame (the frame the authors
+identified in). The plant reports the head height above the table, h = camera height - distance,
+so a positive B moving the distance down lifts the head. The innovations term K e is the model's
+noise description, not a physical input, so the plant runs noise-free; sensors add the noise.
+
+With B of order 1e-7 m/A this plant barely moves: that is the paper's own model, kept faithful.
+"""
+
+from pydrake.symbolic import MakeVectorVariable, Variable
+from pydrake.systems.framework import Diagram
+
+from maskless.systems.named_symbolic_system import (
+    building_expressions,
+    make_named_symbolic_system,
+)
+from maskless.systems.paper_parameters import IdentifiedModel
+from maskless.systems.valve_map import effective_valve_current
+
+
+@building_expressions
+def make_paper_plant(
+    model: IdentifiedModel,
+    camera_height_m: float,
+    valve_starting_current_a: float,
+    valve_saturation_current_a: float,
+    name: str = "paper_plant",
+) -> Diagram:
+    """Builds the paper plant.
+
+    .. pydrake_system::
+
+        name: paper_plant
+        input_ports:
+        - valve_current_a
+        output_ports:
+        - head_height_m
+        - model_state
+
+    Args:
+        model: the identified model in SI (see ``paper_identified_model``).
+        camera_height_m: height of the camera whose frame the model's output is in, above the
+            table (m); converts distance to head height.
+        valve_starting_current_a: no flow below this current (A).
+        valve_saturation_current_a: the current is clipped here (A).
+        name: the Diagram's name.
+
+    The model state starts at zero: the head at the operating point, at rest.
+    """
+    n = model.A.shape[0]
+    x = MakeVectorVariable(n, "x")
+    current = Variable("valve_current_a")
+    u = effective_valve_current(current, valve_starting_current_a, valve_saturation_current_a)
+    next_x = model.A @ x + model.B[:, 0] * (u - model.operating_input_a)
+    distance = model.operating_output_m + (model.C @ x)[0]
+    return make_named_symbolic_system(
+        name,
+        inputs=[("valve_current_a", [current])],
+        outputs=[("head_height_m", [camera_height_m - distance]), ("model_state", list(x))],
+        state=list(x),
+        dynamics=list(next_x),
+        time_period=model.sample_period_s,
+    )
+
+
+def operating_head_height_m(model: IdentifiedModel, camera_height_m: float) -> float:
+    """Head height above the table at the model's operating point (m)."""
+    return camera_height_m - model.operating_output_m

@@ -1,0 +1,38 @@
+import json
+
+from maskless.analysis.recording import read_recording
+from maskless.diagrams.cli import main
+
+
+def test_simulate_writes_recording_plot_and_json_summary(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["simulate", "--duration", "6", "--seed", "2", "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["duration_s"] == 6.0 and summary["random_seed"] == 2
+    assert {"tracking", "estimation", "paper_model", "timing", "files"} <= summary.keys()
+    assert (out / "run.png").stat().st_size > 10_000
+    recording = read_recording(out / "run.mcap")
+    assert not recording.truncated
+    times, _ = recording.topic_arrays("/plant/head_position", "head_position_m")
+    assert times[-1] <= 6e9
+
+
+def test_simulate_prints_a_human_summary(tmp_path, capsys):
+    assert main(["simulate", "--duration", "3", "--out", str(tmp_path)]) == 0
+    text = capsys.readouterr().out
+    assert "Tracking" in text and "fused" in text and "run.mcap" in text
+
+
+def test_mistyped_config_is_refused_before_anything_runs(tmp_path, capsys):
+    config = tmp_path / "bad.yaml"
+    config.write_text("kinect_v2:\n  frame_rate: 30\n")
+    out = tmp_path / "out"
+    assert main(["simulate", "--config", str(config), "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert "bad.yaml" in error and "kinect_v2.frame_rate" in error and "frame_rate_hz" in error
+    assert not out.exists()
+
+
+def test_bad_duration_is_refused(tmp_path, capsys):
+    assert main(["simulate", "--duration", "0", "--out", str(tmp_path / "o")]) == 2
+    assert "--duration" in capsys.readouterr().err

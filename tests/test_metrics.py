@@ -1,0 +1,84 @@
+import math
+
+import numpy as np
+import pytest
+
+from maskless.analysis.metrics import estimate_error_std_m, tracking_metrics
+
+TOL = 0.001
+
+
+def test_first_order_step_settles_at_the_closed_form_time():
+    tau, step, t_step = 2.0, 0.005, 1.0
+    t = np.arange(0, 40, 0.001)
+    reference = np.where(t >= t_step, step, 0.0)
+    head = np.where(t >= t_step, step * (1 - np.exp(-(t - t_step) / tau)), 0.0)
+    m = tracking_metrics(
+        t,
+        head,
+        reference,
+        last_step_time_s=t_step,
+        tolerance_m=TOL,
+        unsettled_evaluation_delay_s=30,
+    )
+    # |e| = step exp(-t/tau) <= tol  <=>  t >= tau ln(step/tol)
+    assert m.settled
+    assert m.settle_time_s == pytest.approx(tau * math.log(step / TOL), abs=2e-3)
+    assert m.overshoot_m == 0.0
+    assert m.max_abs_error_m <= TOL
+
+
+def test_underdamped_step_overshoot_is_the_closed_form_peak():
+    zeta, wn, step = 0.3, 2.0, 0.004
+    t = np.arange(0, 60, 0.001)
+    wd = wn * math.sqrt(1 - zeta**2)
+    phi = math.acos(zeta)
+    response = 1 - np.exp(-zeta * wn * t) / math.sqrt(1 - zeta**2) * np.sin(wd * t + phi)
+    m = tracking_metrics(
+        np.concatenate([[-1.0], t]),
+        np.concatenate([[0.0], step * response]),
+        np.concatenate([[0.0], np.full(t.size, step)]),
+        last_step_time_s=0.0,
+        tolerance_m=TOL,
+        unsettled_evaluation_delay_s=30,
+    )
+    expected = step * math.exp(-zeta * math.pi / math.sqrt(1 - zeta**2))
+    assert m.overshoot_m == pytest.approx(expected, rel=1e-4)
+
+
+def test_a_head_that_never_moves_is_reported_unsettled():
+    t = np.arange(0, 120, 0.048)
+    reference = np.where(t >= 10, 0.005, 0.0)
+    m = tracking_metrics(
+        t,
+        np.zeros_like(t),
+        reference,
+        last_step_time_s=10.0,
+        tolerance_m=TOL,
+        unsettled_evaluation_delay_s=30,
+    )
+    assert not m.settled and m.settle_time_s is None
+    assert m.evaluation_start_s == 40.0
+    assert m.rms_error_m == pytest.approx(0.005)
+    assert m.p95_abs_error_m == pytest.approx(0.005)
+
+
+def test_estimate_error_std_ignores_bias():
+    t = np.arange(1000) * 0.01
+    rng = np.random.default_rng(0)
+    noise = rng.normal(0, 0.002, t.size)
+    assert estimate_error_std_m(t, 0.2 + 0.01 + noise, np.full(t.size, 0.2), 0.0) == pytest.approx(
+        np.std(noise)
+    )
+
+
+def test_bad_lengths_raise():
+    with pytest.raises(ValueError, match="equal length"):
+        tracking_metrics(
+            np.zeros(3),
+            np.zeros(2),
+            np.zeros(3),
+            last_step_time_s=0,
+            tolerance_m=TOL,
+            unsettled_evaluation_delay_s=1,
+        )

@@ -1,0 +1,74 @@
+import numpy as np
+import pytest
+from system_harness import port_layout
+
+from maskless.systems.track_fusion import fuse_tracks, make_track_fusion
+
+
+def random_tracks(count, seed):
+    rng = np.random.default_rng(seed)
+    states, covariances = [], []
+    for _ in range(count):
+        M = rng.normal(size=(2, 2)) * 1e-3
+        covariances.append(M @ M.T + np.eye(2) * 1e-7)
+        states.append(np.array([0.2, 0.0]) + rng.normal(size=2) * 1e-3)
+    return states, covariances
+
+
+def eq_10(states, covariances):
+    """Eq. 10 with explicit inverses."""
+    informations = [np.linalg.inv(P) for P in covariances]
+    P_F = np.linalg.inv(sum(informations))
+    x_F = P_F @ sum(Y @ x for Y, x in zip(informations, states, strict=True))
+    return x_F, P_F
+
+
+@pytest.mark.parametrize("count, seed", [(2, 0), (2, 1), (3, 2), (1, 3)])
+def test_fuse_tracks_matches_eq_10(count, seed):
+    states, covariances = random_tracks(count, seed)
+    x_F, P_F = fuse_tracks(states, covariances)
+    x_ref, P_ref = eq_10(states, covariances)
+    np.testing.assert_allclose(x_F, x_ref, rtol=1e-9)
+    np.testing.assert_allclose(P_F, P_ref, rtol=1e-8)
+
+
+def test_fusion_weights_the_less_noisy_track_more():
+    x_F, P_F = fuse_tracks(
+        [np.array([1.0, 0.0]), np.array([2.0, 0.0])], [np.eye(2) * 4.0, np.eye(2) * 1.0]
+    )
+    # Scalar closed form: (x1/s1 + x2/s2) / (1/s1 + 1/s2) = (0.25 + 2) / 1.25
+    assert x_F[0] == pytest.approx(1.8)
+    assert P_F[0, 0] == pytest.approx(0.8)
+
+
+def test_system_ports_and_output_match_eq_10():
+    fusion = make_track_fusion(["kinect_v1", "kinect_v2"])
+    assert fusion.get_name() == "fusion"
+    assert port_layout(fusion) == (
+        {
+            "kinect_v1_estimated_state": 2,
+            "kinect_v1_covariance": 4,
+            "kinect_v2_estimated_state": 2,
+            "kinect_v2_covariance": 4,
+        },
+        {"estimated_state": 2, "covariance": 4},
+    )
+    states, covariances = random_tracks(2, 7)
+    context = fusion.CreateDefaultContext()
+    for name, x, P in zip(["kinect_v1", "kinect_v2"], states, covariances, strict=True):
+        fusion.GetInputPort(f"{name}_estimated_state").FixValue(context, x)
+        fusion.GetInputPort(f"{name}_covariance").FixValue(context, P.ravel())
+    x_ref, P_ref = eq_10(states, covariances)
+    np.testing.assert_allclose(
+        fusion.GetOutputPort("estimated_state").Eval(context), x_ref, rtol=1e-9
+    )
+    np.testing.assert_allclose(
+        fusion.GetOutputPort("covariance").Eval(context), P_ref.ravel(), rtol=1e-8
+    )
+
+
+def test_no_tracks_is_an_error():
+    with pytest.raises(ValueError, match="at least one track"):
+        make_track_fusion([])
+    with pytest.raises(ValueError, match="one covariance per state"):
+        fuse_tracks([np.zeros(2)], [])

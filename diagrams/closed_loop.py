@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import MatrixGain, Saturation, TrajectorySource, VectorLogSink
+from pydrake.systems.primitives import Saturation, TrajectorySource, VectorLogSink
 from pydrake.trajectories import PiecewisePolynomial
 
 from maskless.diagrams.config import ReferenceConfig, SimulationConfig
@@ -124,10 +124,8 @@ def build_paper_closed_loop(config: SimulationConfig, record: bool = True) -> Cl
     for name, local_filter in filters.items():
         for port in ("estimated_state", "covariance"):
             builder.Connect(local_filter.GetOutputPort(port), fusion.GetInputPort(f"{name}_{port}"))
-    fused_height = builder.AddNamedSystem("fused_height", MatrixGain(np.array([[1.0, 0.0]])))
-    builder.Connect(fusion.GetOutputPort("estimated_state"), fused_height.get_input_port())
     builder.Connect(
-        fused_height.get_output_port(), controller.GetInputPort("measured_head_height_m")
+        fusion.GetOutputPort("estimated_state"), controller.GetInputPort("fused_estimated_state")
     )
     builder.Connect(reference.get_output_port(), controller.GetInputPort("reference_head_height_m"))
     builder.Connect(controller.GetOutputPort("valve_current_a"), limits.get_input_port())

@@ -12,6 +12,7 @@ zeros in the authors' logs) reads 0 with ``valid`` = 0, as a Kinect reports inva
 import math
 from dataclasses import dataclass
 
+import scipy.stats
 from pydrake.common import RandomDistribution
 from pydrake.symbolic import (
     Expression,
@@ -167,22 +168,17 @@ def make_depth_sensor(name: str, config: DepthSensorConfig) -> Diagram:
         name: the Diagram's name (and the sensor's name in recordings).
         config: the sensor's parameters.
 
-    Noise comes from two RandomSource systems (Gaussian, uniform), one sample per frame, so a run
+    Noise comes from one Gaussian RandomSource, two draws per frame (the axial noise, and the
+    dropout draw compared with the normal quantile of ``dropout_probability``), so a run
     seeded with ``diagram.SetRandomContext`` is reproducible bit for bit. Until the delay line
     has filled (and before the first frame), frames are invalid.
     """
     validate_sensor_config(name, config)
     period_s = 1.0 / config.frame_rate_hz
     builder = DiagramBuilder()
-    gaussian = builder.AddNamedSystem(
-        "axial_noise", RandomSource(RandomDistribution.kGaussian, 1, period_s)
-    )
-    uniform = builder.AddNamedSystem(
-        "dropout_draw", RandomSource(RandomDistribution.kUniform, 1, period_s)
-    )
+    noise = builder.AddNamedSystem("noise", RandomSource(RandomDistribution.kGaussian, 2, period_s))
     frames = builder.AddNamedSystem("frames", _frame_dynamics(name, config, period_s))
-    builder.Connect(gaussian.get_output_port(0), frames.GetInputPort("standard_normal"))
-    builder.Connect(uniform.get_output_port(0), frames.GetInputPort("uniform"))
+    builder.Connect(noise.get_output_port(0), frames.GetInputPort("standard_normal"))
     builder.ExportInput(frames.GetInputPort("head_height_m"), "head_height_m")
     builder.ExportOutput(frames.GetOutputPort("distance_m"), "distance_m")
     builder.ExportOutput(frames.GetOutputPort("valid"), "valid")
@@ -196,8 +192,7 @@ def _frame_dynamics(name: str, config: DepthSensorConfig, period_s: float) -> Di
     delay = latency_frames(config) - 1  # the filter's next tick supplies the last frame of latency
     t = Variable("t")
     head_height = Variable("head_height_m")
-    normal = Variable("standard_normal")
-    uniform = Variable("uniform")
+    normal, dropout_draw = MakeVectorVariable(2, "standard_normal")
     # State: heights seen 1..delay frames ago, then the last frame's distance and validity. Heights
     # are stored as offsets from the camera (h - mount = -distance) so the zero default state is a
     # head at the camera, which only the invalid first frame ever sees.
@@ -221,17 +216,19 @@ def _frame_dynamics(name: str, config: DepthSensorConfig, period_s: float) -> Di
     else:
         raise TypeError(f"{name}: no camera model for config type {type(config).__name__}")
 
-    valid = logical_and(
-        logical_and(true_distance >= config.min_range_m, true_distance <= config.max_range_m),
-        uniform >= config.dropout_probability,
-    )
+    in_range = logical_and(true_distance >= config.min_range_m, true_distance <= config.max_range_m)
+    if config.dropout_probability > 0:
+        # P(draw < Φ⁻¹(p)) = p for a standard normal draw.
+        threshold = float(scipy.stats.norm.ppf(config.dropout_probability))
+        valid = logical_and(in_range, dropout_draw >= threshold)
+    else:
+        valid = in_range
     next_history = [head_height - mount] + list(history[:-1]) if delay > 0 else []
     return make_named_symbolic_system(
         "frames",
         inputs=[
             ("head_height_m", [head_height]),
-            ("standard_normal", [normal]),
-            ("uniform", [uniform]),
+            ("standard_normal", [normal, dropout_draw]),
         ],
         outputs=[("distance_m", [distance_state]), ("valid", [valid_state])],
         state=list(history) + [distance_state, valid_state],

@@ -3,8 +3,8 @@
 Design is pure: ``design_lqg`` returns the LQR gain from Drake's
 DiscreteTimeLinearQuadraticRegulator (Eq. 29, 31 with N = 0) and the estimator gain from Drake's
 DiscreteTimeSteadyStateKalmanFilter, which is the one-step predictor gain A P Cᵀ (C P Cᵀ + V)⁻¹ of
-Eq. 34. Running is a system: ``make_lqg_controller`` wires an estimator (Eq. 34) and the feedback
-law u = u_op - K (x̂ - N_x r) into a Diagram whose only Python is in its construction.
+Eq. 34. Running is a system: ``make_lqg_controller`` runs the estimator (Eq. 34) and the feedback
+law u = u_op - K (x̂ - N_x r) as one discrete system whose only Python is in its construction.
 
 The measurement is the fused head height; the model's output is a camera distance, so the
 controller converts with the camera height the model was identified in. The reference enters as the
@@ -19,7 +19,7 @@ import numpy as np
 from pydrake.symbolic import MakeVectorVariable, Variable
 from pydrake.systems.controllers import DiscreteTimeLinearQuadraticRegulator
 from pydrake.systems.estimators import DiscreteTimeSteadyStateKalmanFilter
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.framework import Diagram
 
 from maskless.systems.named_symbolic_system import (
     building_expressions,
@@ -90,12 +90,11 @@ def make_lqg_controller(
 
         name: lqg_controller
         input_ports:
-        - measured_head_height_m
+        - fused_estimated_state
         - reference_head_height_m
         - applied_current_a
         output_ports:
         - valve_current_a
-        - estimated_model_state
 
     Args:
         model: the model the gains were designed on (SI).
@@ -103,52 +102,37 @@ def make_lqg_controller(
         camera_height_m: height of the camera whose distance the model outputs (m).
         name: the Diagram's name.
 
-    The estimator ticks at the model's sample period; the command is x̂'s feedback, so it changes
-    only at ticks (the one-sample computation delay of the predictor form, Eq. 34). The estimator
-    state starts at zero: the model's operating point.
+    Every sample period the controller reads the fused estimate's height (the measurement y of
+    Eq. 34), the reference and the current actually applied, updates its estimate x̂ (Eq. 34) and
+    holds the reference it read; its command u = u_op - K (x̂ - N_x r) depends on that state only,
+    so a new reference acts at the next tick (a sampled-data controller) and the command changes
+    only at ticks (the one-sample computation delay of the predictor form). The state is
+    [x̂, held reference offset]; it starts at zero: the model's operating point.
     """
     n = model.A.shape[0]
     A, B, C, K, L = model.A, model.B, model.C, design.K, design.L
     x_hat = MakeVectorVariable(n, "x_hat")
-    measured_height = Variable("measured_head_height_m")
-    applied = Variable("applied_current_a")
-    measured_output = camera_height_m - measured_height - model.operating_output_m
-    innovation = measured_output - (C @ x_hat)[0]
-    next_x_hat = A @ x_hat + B[:, 0] * (applied - model.operating_input_a) + L[:, 0] * innovation
-    estimator = make_named_symbolic_system(
-        "estimator",
-        inputs=[("measured_head_height_m", [measured_height]), ("applied_current_a", [applied])],
-        outputs=[("estimated_model_state", list(x_hat))],
-        state=list(x_hat),
-        dynamics=list(next_x_hat),
-        time_period=model.sample_period_s,
-    )
-
-    state_in = MakeVectorVariable(n, "x_hat")
+    held_reference = Variable("held_reference_output_m")  # r in the model's output coordinates
+    fused = MakeVectorVariable(2, "fused_estimated_state")
     reference_height = Variable("reference_head_height_m")
-    reference_output = camera_height_m - reference_height - model.operating_output_m
-    state_error = np.array(list(state_in)) - design.state_for_output * reference_output
-    command = model.operating_input_a - (K @ state_error)[0]
-    law = make_named_symbolic_system(
-        "feedback_law",
+    applied = Variable("applied_current_a")
+
+    def model_output(height):
+        """A head height as the model's output: distance below the camera, minus d_op."""
+        return camera_height_m - height - model.operating_output_m
+
+    innovation = model_output(fused[0]) - (C @ x_hat)[0]
+    next_x_hat = A @ x_hat + B[:, 0] * (applied - model.operating_input_a) + L[:, 0] * innovation
+    command = model.operating_input_a - (K @ (x_hat - design.state_for_output * held_reference))[0]
+    return make_named_symbolic_system(
+        name,
         inputs=[
-            ("estimated_model_state", list(state_in)),
+            ("fused_estimated_state", list(fused)),
             ("reference_head_height_m", [reference_height]),
+            ("applied_current_a", [applied]),
         ],
         outputs=[("valve_current_a", [command])],
+        state=[*x_hat, held_reference],
+        dynamics=[*next_x_hat, model_output(reference_height)],
+        time_period=model.sample_period_s,
     )
-
-    builder = DiagramBuilder()
-    builder.AddSystem(estimator)
-    builder.AddSystem(law)
-    builder.Connect(
-        estimator.GetOutputPort("estimated_model_state"), law.GetInputPort("estimated_model_state")
-    )
-    builder.ExportInput(estimator.GetInputPort("measured_head_height_m"), "measured_head_height_m")
-    builder.ExportInput(law.GetInputPort("reference_head_height_m"), "reference_head_height_m")
-    builder.ExportInput(estimator.GetInputPort("applied_current_a"), "applied_current_a")
-    builder.ExportOutput(law.GetOutputPort("valve_current_a"), "valve_current_a")
-    builder.ExportOutput(estimator.GetOutputPort("estimated_model_state"), "estimated_model_state")
-    diagram = builder.Build()
-    diagram.set_name(name)
-    return diagram

@@ -72,17 +72,24 @@ def make_named_symbolic_system(
     )
     builder = DiagramBuilder()
     builder.AddNamedSystem("dynamics", core)
-    if inputs:
+    # Multiplexer and Demultiplexer only where a port is shared: each extra system adds cache
+    # invalidation work to every simulation step.
+    if len(inputs) == 1:
+        builder.ExportInput(core.get_input_port(), inputs[0][0])
+    elif inputs:
         sizes = [len(variables) for _, variables in inputs]
         mux = builder.AddNamedSystem("inputs", Multiplexer(sizes))
         builder.Connect(mux.get_output_port(0), core.get_input_port())
         for index, (port_name, _) in enumerate(inputs):
             builder.ExportInput(mux.get_input_port(index), port_name)
-    sizes = [len(expressions) for _, expressions in outputs]
-    demux = builder.AddNamedSystem("outputs", Demultiplexer(sizes))
-    builder.Connect(core.get_output_port(), demux.get_input_port(0))
-    for index, (port_name, _) in enumerate(outputs):
-        builder.ExportOutput(demux.get_output_port(index), port_name)
+    if len(outputs) == 1:
+        builder.ExportOutput(core.get_output_port(), outputs[0][0])
+    else:
+        sizes = [len(expressions) for _, expressions in outputs]
+        demux = builder.AddNamedSystem("outputs", Demultiplexer(sizes))
+        builder.Connect(core.get_output_port(), demux.get_input_port(0))
+        for index, (port_name, _) in enumerate(outputs):
+            builder.ExportOutput(demux.get_output_port(index), port_name)
     diagram = builder.Build()
     diagram.set_name(name)
     return diagram

@@ -37,7 +37,6 @@ def make_paper_plant(
         - valve_current_a
         output_ports:
         - head_height_m
-        - model_state
 
     Args:
         model: the identified model in SI (see ``paper_identified_model``).
@@ -58,7 +57,7 @@ def make_paper_plant(
     return make_named_symbolic_system(
         name,
         inputs=[("valve_current_a", [current])],
-        outputs=[("head_height_m", [camera_height_m - distance]), ("model_state", list(x))],
+        outputs=[("head_height_m", [camera_height_m - distance])],
         state=list(x),
         dynamics=list(next_x),
         time_period=model.sample_period_s,

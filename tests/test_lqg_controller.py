@@ -69,28 +69,32 @@ def test_controller_ports_and_equations(model, design):
     controller = make_lqg_controller(model, design, CAMERA_M, name="paper_lqg")
     assert controller.get_name() == "paper_lqg"
     assert port_layout(controller) == (
-        {"measured_head_height_m": 1, "reference_head_height_m": 1, "applied_current_a": 1},
-        {"valve_current_a": 1, "estimated_model_state": 2},
+        {"fused_estimated_state": 2, "reference_head_height_m": 1, "applied_current_a": 1},
+        {"valve_current_a": 1},
     )
     context = controller.CreateDefaultContext()
     x_hat = np.array([0.001, 0.0015])
-    context.SetDiscreteState(x_hat)
+    held_reference = -0.004  # the model's output coordinate of the reference read last tick
+    context.SetDiscreteState(np.append(x_hat, held_reference))
     height, reference, applied = 0.205, 0.212, 0.09
-    controller.GetInputPort("measured_head_height_m").FixValue(context, [height])
+    controller.GetInputPort("fused_estimated_state").FixValue(context, [height, 0.01])
     controller.GetInputPort("reference_head_height_m").FixValue(context, [reference])
     controller.GetInputPort("applied_current_a").FixValue(context, [applied])
-    # The model's output coordinates: distance below the camera minus the operating distance.
-    y = CAMERA_M - height - model.operating_output_m
-    r = CAMERA_M - reference - model.operating_output_m
-    u_expected = model.operating_input_a - design.K @ (x_hat - design.state_for_output * r)
+    # u = u_op - K (x_hat - N_x r) with the reference held from the last tick.
+    u_expected = model.operating_input_a - design.K @ (
+        x_hat - design.state_for_output * held_reference
+    )
     assert controller.GetOutputPort("valve_current_a").Eval(context)[0] == pytest.approx(
         u_expected[0], rel=1e-12
     )
-    # Eq. 34: x(k+1) = A x - L (C x - y) + B u, u the applied current deviation.
+    # Eq. 34: x(k+1) = A x - L (C x - y) + B u, y and u as deviations in the model's coordinates
+    # (distance below the camera), and the new reference is held.
+    y = CAMERA_M - height - model.operating_output_m
     expected_next = (
         model.A @ x_hat
         - design.L[:, 0] * ((model.C @ x_hat)[0] - y)
         + model.B[:, 0] * (applied - model.operating_input_a)
     )
     updated = controller.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
-    np.testing.assert_allclose(updated, expected_next, rtol=1e-12)
+    np.testing.assert_allclose(updated[:2], expected_next, rtol=1e-12)
+    assert updated[2] == pytest.approx(CAMERA_M - reference - model.operating_output_m)

@@ -22,7 +22,7 @@ def plant(model):
 
 def test_ports(plant):
     assert plant.get_name() == "paper_plant"
-    assert port_layout(plant) == ({"valve_current_a": 1}, {"head_height_m": 1, "model_state": 2})
+    assert port_layout(plant) == ({"valve_current_a": 1}, {"head_height_m": 1})
 
 
 def eq_25_step_mm(x_mm, current_ma):

@@ -343,6 +343,41 @@ def _prepare_channel(channel: Channel) -> tuple[np.ndarray, list[str], list[list
     return times, list(required), lists
 
 
+def _encode_payloads(topic: str, names: list[str], lists: list[list[Any]]) -> list[bytes]:
+    """The compact JSON of every message of one channel.
+
+    For finite numbers a %-template gives exactly ``json.dumps(payload, separators=(",", ":"))``
+    (both write floats with ``float.__repr__``) at a third of the cost; a channel holding NaN or
+    infinity goes through ``json.dumps`` itself, which spells those its own way.
+    """
+    _, schema = schema_for_topic(topic)
+    kinds = [schema["properties"][name]["type"] for name in names]
+    finite = all(
+        np.isfinite(np.asarray(column, dtype=float)).all()
+        for column, kind in zip(lists, kinds, strict=True)
+        if kind != _BOOLEAN
+    )
+    if not finite:
+        return [
+            json.dumps(dict(zip(names, row, strict=True)), separators=(",", ":")).encode()
+            for row in zip(*lists, strict=True)
+        ]
+    parts, flat_columns = [], []
+    for name, kind, column in zip(names, kinds, lists, strict=True):
+        if kind == "array":  # a 2x2 matrix, row-major
+            parts.append(f'"{name}":[[%r,%r],[%r,%r]]')
+            flat = np.asarray(column, dtype=float).reshape(-1, 4).T.tolist()
+            flat_columns.extend(flat)
+        elif kind == _BOOLEAN:
+            parts.append(f'"{name}":%s')
+            flat_columns.append(["true" if value else "false" for value in column])
+        else:
+            parts.append(f'"{name}":%r')
+            flat_columns.append(column)
+    template = "{" + ",".join(parts) + "}"
+    return [(template % row).encode() for row in zip(*flat_columns, strict=True)]
+
+
 def write_recording(path: str | PathLike[str], channels: Sequence[Channel]) -> None:
     """Writes a simulation recording as MCAP.
 
@@ -370,14 +405,10 @@ def write_recording(path: str | PathLike[str], channels: Sequence[Channel]) -> N
         prepared.append(_prepare_channel(channel))
 
     # Encode every payload up front (column lists, no numpy scalars).
-    payloads: list[list[bytes]] = []
-    for _, names, lists in prepared:
-        payloads.append(
-            [
-                json.dumps(dict(zip(names, row, strict=True)), separators=(",", ":")).encode()
-                for row in zip(*lists, strict=True)
-            ]
-        )
+    payloads = [
+        _encode_payloads(channel.topic, names, lists)
+        for channel, (_, names, lists) in zip(channels, prepared, strict=True)
+    ]
 
     # A stable sort over the channels concatenated in order keeps ties in the order of `channels`
     # and, within a channel, in sample order.

@@ -12,17 +12,17 @@ from pydrake.systems.primitives import Saturation, TrajectorySource, VectorLogSi
 from pydrake.trajectories import PiecewisePolynomial
 
 from maskless.diagrams.config import ReferenceConfig, SimulationConfig
-from maskless.systems.depth_sensor import make_depth_sensor
-from maskless.systems.local_kalman_filter import make_local_kalman_filter
-from maskless.systems.lqg_controller import LqgDesign, design_lqg, make_lqg_controller
+from maskless.systems.depth_sensor import add_depth_sensor
+from maskless.systems.local_kalman_filter import add_local_kalman_filter
+from maskless.systems.lqg_controller import LqgDesign, add_lqg_controller, design_lqg
 from maskless.systems.paper_parameters import (
     IdentifiedModel,
     paper_filter_variances_si,
     paper_identified_model,
     paper_lqg_weights,
 )
-from maskless.systems.paper_plant import make_paper_plant, operating_head_height_m
-from maskless.systems.track_fusion import make_track_fusion
+from maskless.systems.paper_plant import add_paper_plant, operating_head_height_m
+from maskless.systems.track_fusion import add_track_fusion
 from maskless.systems.units import ma_to_a
 
 # Far beyond any run, so the last reference value holds for the rest of the simulation.
@@ -79,71 +79,65 @@ def build_paper_closed_loop(config: SimulationConfig, record: bool = True) -> Cl
     saturation_current_a = ma_to_a(paper.valve_saturation_current_ma)
 
     builder = DiagramBuilder()
+    # Components are added flat (add_*), not as nested Diagrams: every nesting level costs about as
+    # much per step as its leaf systems, and the loop must run >= 1000x faster than real time.
     reference = builder.AddNamedSystem(
         "reference",
         TrajectorySource(make_reference_trajectory(config.reference, start_height_m)),
     )
-    controller = builder.AddSystem(
-        make_lqg_controller(model, design, model_camera_height_m, name="paper_lqg")
-    )
+    controller = add_lqg_controller(builder, model, design, model_camera_height_m, "paper_lqg")
     limits = builder.AddNamedSystem(
         "valve_current_limits", Saturation([0.0], [saturation_current_a])
     )
-    plant = builder.AddSystem(
-        make_paper_plant(
-            model,
-            model_camera_height_m,
-            ma_to_a(paper.valve_starting_current_ma),
-            saturation_current_a,
-            name="paper_plant",
-        )
+    plant = add_paper_plant(
+        builder,
+        model,
+        model_camera_height_m,
+        ma_to_a(paper.valve_starting_current_ma),
+        saturation_current_a,
+        name="paper_plant",
     )
     sensor_names = list(config.sensors())
-    fusion_inputs = []
     filters = {}
     sensors = {}
     for name, sensor_config in config.sensors().items():
-        sensor = builder.AddSystem(make_depth_sensor(name, sensor_config))
-        local_filter = builder.AddSystem(
-            make_local_kalman_filter(
-                f"{name}_filter",
-                camera_height_m=sensor_config.mount_height_m,
-                frame_period_s=1.0 / sensor_config.frame_rate_hz,
-                acceleration_variance_m2_s4=variances["acceleration_variance_m2_s4"],
-                measurement_variance_m2=variances[name],
-                initial_height_m=start_height_m,
-                config=config.local_filter,
-            )
+        sensor = add_depth_sensor(builder, name, sensor_config)
+        local_filter = add_local_kalman_filter(
+            builder,
+            f"{name}_filter",
+            camera_height_m=sensor_config.mount_height_m,
+            frame_period_s=1.0 / sensor_config.frame_rate_hz,
+            acceleration_variance_m2_s4=variances["acceleration_variance_m2_s4"],
+            measurement_variance_m2=variances[name],
+            initial_height_m=start_height_m,
+            config=config.local_filter,
         )
-        builder.Connect(plant.GetOutputPort("head_height_m"), sensor.GetInputPort("head_height_m"))
+        builder.Connect(plant.outputs["head_height_m"], sensor.inputs["head_height_m"])
         for port in ("distance_m", "valid"):
-            builder.Connect(sensor.GetOutputPort(port), local_filter.GetInputPort(port))
+            builder.Connect(sensor.outputs[port], local_filter.inputs[port])
         sensors[name], filters[name] = sensor, local_filter
-        fusion_inputs.append(name)
-    fusion = builder.AddSystem(make_track_fusion(fusion_inputs, name="fusion"))
+    fusion = add_track_fusion(builder, sensor_names, name="fusion")
     for name, local_filter in filters.items():
         for port in ("estimated_state", "covariance"):
-            builder.Connect(local_filter.GetOutputPort(port), fusion.GetInputPort(f"{name}_{port}"))
-    builder.Connect(
-        fusion.GetOutputPort("estimated_state"), controller.GetInputPort("fused_estimated_state")
-    )
-    builder.Connect(reference.get_output_port(), controller.GetInputPort("reference_head_height_m"))
-    builder.Connect(controller.GetOutputPort("valve_current_a"), limits.get_input_port())
-    builder.Connect(limits.get_output_port(), plant.GetInputPort("valve_current_a"))
-    builder.Connect(limits.get_output_port(), controller.GetInputPort("applied_current_a"))
+            builder.Connect(local_filter.outputs[port], fusion.inputs[f"{name}_{port}"])
+    builder.Connect(fusion.outputs["estimated_state"], controller.inputs["fused_estimated_state"])
+    builder.Connect(reference.get_output_port(), controller.inputs["reference_head_height_m"])
+    builder.Connect(controller.outputs["valve_current_a"], limits.get_input_port())
+    builder.Connect(limits.get_output_port(), plant.inputs["valve_current_a"])
+    builder.Connect(limits.get_output_port(), controller.inputs["applied_current_a"])
 
     exported = {
         "reference_head_height_m": reference.get_output_port(),
-        "head_height_m": plant.GetOutputPort("head_height_m"),
+        "head_height_m": plant.outputs["head_height_m"],
         "valve_current_a": limits.get_output_port(),
-        "fusion.estimated_state": fusion.GetOutputPort("estimated_state"),
-        "fusion.covariance": fusion.GetOutputPort("covariance"),
+        "fusion.estimated_state": fusion.outputs["estimated_state"],
+        "fusion.covariance": fusion.outputs["covariance"],
     }
     for name in sensor_names:
         for port in ("distance_m", "valid"):
-            exported[f"{name}.{port}"] = sensors[name].GetOutputPort(port)
+            exported[f"{name}.{port}"] = sensors[name].outputs[port]
         for port in ("estimated_state", "covariance"):
-            exported[f"{name}_filter.{port}"] = filters[name].GetOutputPort(port)
+            exported[f"{name}_filter.{port}"] = filters[name].outputs[port]
     for port_name, port in exported.items():
         builder.ExportOutput(port, port_name)
 

@@ -29,8 +29,10 @@ from pydrake.systems.primitives import RandomSource
 
 from maskless.assets.loader import UNSET, ConfigError
 from maskless.systems.named_symbolic_system import (
+    PortMap,
+    add_named_symbolic_system,
+    as_diagram,
     building_expressions,
-    make_named_symbolic_system,
 )
 
 # Kinect v1 disparity-to-depth model z = 1 / (DISPARITY_SLOPE d + DISPARITY_INTERCEPT), d the 11-bit
@@ -152,8 +154,13 @@ def validate_sensor_config(name: str, config: DepthSensorConfig) -> None:
 
 
 def make_depth_sensor(name: str, config: DepthSensorConfig) -> Diagram:
-    """Builds a camera model: ``kinect_v1`` for a KinectV1Config, ``kinect_v2`` for a
-    KinectV2Config.
+    """The camera model as a Diagram (see ``add_depth_sensor``)."""
+    return as_diagram(name, lambda builder: add_depth_sensor(builder, name, config))
+
+
+def add_depth_sensor(builder: DiagramBuilder, name: str, config: DepthSensorConfig) -> PortMap:
+    """Adds a camera model to ``builder``: ``kinect_v1`` for a KinectV1Config, ``kinect_v2`` for
+    a KinectV2Config.
 
     .. pydrake_system::
 
@@ -165,7 +172,8 @@ def make_depth_sensor(name: str, config: DepthSensorConfig) -> Diagram:
         - valid
 
     Args:
-        name: the Diagram's name (and the sensor's name in recordings).
+        builder: where the sensor's systems go.
+        name: the sensor's name (and its name in recordings); its noise source is ``{name}.noise``.
         config: the sensor's parameters.
 
     Noise comes from one Gaussian RandomSource, two draws per frame (the axial noise, and the
@@ -175,20 +183,18 @@ def make_depth_sensor(name: str, config: DepthSensorConfig) -> Diagram:
     """
     validate_sensor_config(name, config)
     period_s = 1.0 / config.frame_rate_hz
-    builder = DiagramBuilder()
-    noise = builder.AddNamedSystem("noise", RandomSource(RandomDistribution.kGaussian, 2, period_s))
-    frames = builder.AddNamedSystem("frames", _frame_dynamics(name, config, period_s))
-    builder.Connect(noise.get_output_port(0), frames.GetInputPort("standard_normal"))
-    builder.ExportInput(frames.GetInputPort("head_height_m"), "head_height_m")
-    builder.ExportOutput(frames.GetOutputPort("distance_m"), "distance_m")
-    builder.ExportOutput(frames.GetOutputPort("valid"), "valid")
-    diagram = builder.Build()
-    diagram.set_name(name)
-    return diagram
+    noise = builder.AddNamedSystem(
+        f"{name}.noise", RandomSource(RandomDistribution.kGaussian, 2, period_s)
+    )
+    ports = _add_frame_dynamics(builder, name, config, period_s)
+    builder.Connect(noise.get_output_port(0), ports.inputs.pop("standard_normal"))
+    return ports
 
 
 @building_expressions
-def _frame_dynamics(name: str, config: DepthSensorConfig, period_s: float) -> Diagram:
+def _add_frame_dynamics(
+    builder: DiagramBuilder, name: str, config: DepthSensorConfig, period_s: float
+) -> PortMap:
     delay = latency_frames(config) - 1  # the filter's next tick supplies the last frame of latency
     t = Variable("t")
     head_height = Variable("head_height_m")
@@ -224,8 +230,9 @@ def _frame_dynamics(name: str, config: DepthSensorConfig, period_s: float) -> Di
     else:
         valid = in_range
     next_history = [head_height - mount] + list(history[:-1]) if delay > 0 else []
-    return make_named_symbolic_system(
-        "frames",
+    return add_named_symbolic_system(
+        builder,
+        name,
         inputs=[
             ("head_height_m", [head_height]),
             ("standard_normal", [normal, dropout_draw]),

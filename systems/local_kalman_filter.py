@@ -22,12 +22,14 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.math import DiscreteAlgebraicRiccatiEquation
 from pydrake.symbolic import Expression, MakeVectorVariable, Variable, if_then_else, logical_and
-from pydrake.systems.framework import Diagram
+from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from maskless.assets.loader import UNSET, ConfigError
 from maskless.systems.named_symbolic_system import (
+    PortMap,
+    add_named_symbolic_system,
+    as_diagram,
     building_expressions,
-    make_named_symbolic_system,
 )
 
 MEASUREMENT_MATRIX = np.array([[1.0, 0.0]])  # H in Eq. 7
@@ -90,8 +92,14 @@ def steady_state_covariances(dt, acceleration_variance, measurement_variance):
     return prior, posterior
 
 
+def make_local_kalman_filter(name: str, **kwargs) -> Diagram:
+    """The local filter as a Diagram; keyword arguments as for ``add_local_kalman_filter``."""
+    return as_diagram(name, lambda builder: add_local_kalman_filter(builder, name, **kwargs))
+
+
 @building_expressions
-def make_local_kalman_filter(
+def add_local_kalman_filter(
+    builder: DiagramBuilder,
     name: str,
     *,
     camera_height_m: float,
@@ -100,8 +108,8 @@ def make_local_kalman_filter(
     measurement_variance_m2: float,
     initial_height_m: float,
     config: LocalFilterConfig,
-) -> Diagram:
-    """Builds one local filter.
+) -> PortMap:
+    """Adds one local filter to ``builder``.
 
     .. pydrake_system::
 
@@ -114,7 +122,8 @@ def make_local_kalman_filter(
         - covariance
 
     Args:
-        name: the Diagram's name.
+        builder: where the filter's systems go.
+        name: the filter's name.
         camera_height_m: the camera's height above the table; height = camera_height_m - distance.
         frame_period_s: the camera's frame period, the filter's tick (s).
         acceleration_variance_m2_s4: σ_a² (m²/s⁴).
@@ -160,7 +169,8 @@ def make_local_kalman_filter(
     next_state.append(Expression(t))
 
     x_now, P_now = predict(x, P, t - last_tick, acceleration_variance_m2_s4)
-    return make_named_symbolic_system(
+    return add_named_symbolic_system(
+        builder,
         name,
         inputs=[("distance_m", [distance]), ("valid", [valid])],
         outputs=[("estimated_state", list(x_now)), ("covariance", list(P_now.flatten()))],

@@ -19,11 +19,13 @@ import numpy as np
 from pydrake.symbolic import MakeVectorVariable, Variable
 from pydrake.systems.controllers import DiscreteTimeLinearQuadraticRegulator
 from pydrake.systems.estimators import DiscreteTimeSteadyStateKalmanFilter
-from pydrake.systems.framework import Diagram
+from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from maskless.systems.named_symbolic_system import (
+    PortMap,
+    add_named_symbolic_system,
+    as_diagram,
     building_expressions,
-    make_named_symbolic_system,
 )
 from maskless.systems.paper_parameters import IdentifiedModel, LqgWeights
 
@@ -77,14 +79,24 @@ def closed_loop_poles(model: IdentifiedModel, design: LqgDesign) -> dict[str, np
     }
 
 
-@building_expressions
 def make_lqg_controller(
+    model: IdentifiedModel, design: LqgDesign, camera_height_m: float, name: str = "lqg_controller"
+) -> Diagram:
+    """The LQG controller as a Diagram (see ``add_lqg_controller``)."""
+    return as_diagram(
+        name, lambda builder: add_lqg_controller(builder, model, design, camera_height_m, name)
+    )
+
+
+@building_expressions
+def add_lqg_controller(
+    builder: DiagramBuilder,
     model: IdentifiedModel,
     design: LqgDesign,
     camera_height_m: float,
     name: str = "lqg_controller",
-) -> Diagram:
-    """Builds the LQG controller.
+) -> PortMap:
+    """Adds the LQG controller to ``builder``.
 
     .. pydrake_system::
 
@@ -97,10 +109,11 @@ def make_lqg_controller(
         - valve_current_a
 
     Args:
+        builder: where the controller's systems go.
         model: the model the gains were designed on (SI).
         design: the gains.
         camera_height_m: height of the camera whose distance the model outputs (m).
-        name: the Diagram's name.
+        name: the controller's name.
 
     Every sample period the controller reads the fused estimate's height (the measurement y of
     Eq. 34), the reference and the current actually applied, updates its estimate x̂ (Eq. 34) and
@@ -124,7 +137,8 @@ def make_lqg_controller(
     innovation = model_output(fused[0]) - (C @ x_hat)[0]
     next_x_hat = A @ x_hat + B[:, 0] * (applied - model.operating_input_a) + L[:, 0] * innovation
     command = model.operating_input_a - (K @ (x_hat - design.state_for_output * held_reference))[0]
-    return make_named_symbolic_system(
+    return add_named_symbolic_system(
+        builder,
         name,
         inputs=[
             ("fused_estimated_state", list(fused)),

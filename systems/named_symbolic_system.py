@@ -1,23 +1,55 @@
-"""A SymbolicVectorSystem behind named, sized ports.
+"""A SymbolicVectorSystem behind named, sized ports, added to a builder or packaged as a Diagram.
 
 Drake's SymbolicVectorSystem runs its expressions in C++ (about ten times cheaper per step than a
 Python LeafSystem callback, which is what lets the closed loop run far faster than real time) and
 supports scalar conversion, so Linearize and AutoDiff work on it. Its ports, however, are one
-unnamed vector in and one out ("u0", "y0"). This wraps it in a Diagram that splits the vector into
-named ports, the convention every maskless system follows.
+unnamed vector in and one out ("u0", "y0"). The helpers here split that vector into named ports.
 
-Its default state is zero and cannot be changed from Python, so systems built with it store their
-state relative to the configured initial value: a fresh Context then starts where it should, with
-no set-up call a user could forget.
+Every maskless component comes in two forms built by one function: ``add_*(builder, ...)`` adds its
+systems to a builder and returns a ``PortMap`` (named port handles), and ``make_*(...)`` packages
+the same systems as a Diagram with those port names (``as_diagram``). The closed loop uses the first
+form: each nested Diagram level costs about as much per simulation step as the leaf systems in it,
+and the loop's speed target needs the flat form.
+
+The default state of a SymbolicVectorSystem is zero and cannot be changed from Python, so the
+components store their state relative to the configured initial value: a fresh Context then starts
+where it should, with no set-up call a user could forget.
 """
 
 import functools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.symbolic import Expression, Variable
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.framework import Diagram, DiagramBuilder, InputPort, OutputPort
 from pydrake.systems.primitives import Demultiplexer, Multiplexer, SymbolicVectorSystem
+
+
+@dataclass
+class PortMap:
+    """A component's ports by name, as added to a builder.
+
+    Attributes:
+        inputs: input port name -> the port to connect (or export).
+        outputs: output port name -> the port to connect (or export).
+    """
+
+    inputs: dict[str, InputPort] = field(default_factory=dict)
+    outputs: dict[str, OutputPort] = field(default_factory=dict)
+
+
+def as_diagram(name: str, add: Callable[[DiagramBuilder], PortMap]) -> Diagram:
+    """Runs ``add`` on a fresh builder and exports every port it returns under its name."""
+    builder = DiagramBuilder()
+    ports = add(builder)
+    for port_name, port in ports.inputs.items():
+        builder.ExportInput(port, port_name)
+    for port_name, port in ports.outputs.items():
+        builder.ExportOutput(port, port_name)
+    diagram = builder.Build()
+    diagram.set_name(name)
+    return diagram
 
 
 def building_expressions(function):
@@ -36,7 +68,8 @@ def building_expressions(function):
     return wrapper
 
 
-def make_named_symbolic_system(
+def add_named_symbolic_system(
+    builder: DiagramBuilder,
     name: str,
     *,
     inputs: Sequence[tuple[str, Sequence[Variable]]],
@@ -45,54 +78,56 @@ def make_named_symbolic_system(
     dynamics: Sequence[Expression] = (),
     time: Variable | None = None,
     time_period: float = 0.0,
-) -> Diagram:
-    """Builds a Diagram named ``name`` around one SymbolicVectorSystem.
+) -> PortMap:
+    """Adds one SymbolicVectorSystem named ``name`` to ``builder``, with named ports.
 
     Args:
-        name: the Diagram's name.
+        builder: where the systems go.
+        name: the SymbolicVectorSystem's name; its Multiplexer and Demultiplexer, when needed,
+            are ``{name}.inputs`` and ``{name}.outputs``.
         inputs: (port name, variables) for each input port, in order.
         outputs: (port name, expressions) for each output port, in order.
         state: the state variables (discrete when ``time_period`` > 0).
         dynamics: the next state (discrete) or the derivative (continuous), one per state variable.
         time: the variable standing for time in the expressions, if any.
         time_period: the update period in s; 0 for continuous dynamics.
-
-    Returns:
-        The Diagram, with the SymbolicVectorSystem reachable as its subsystem named "dynamics".
     """
-    input_variables = [v for _, variables in inputs for v in variables]
-    output_expressions = [_as_expression(e) for _, expressions in outputs for e in expressions]
-    core = SymbolicVectorSystem(
-        time=time,
-        state=np.array(list(state), dtype=object),
-        input=np.array(input_variables, dtype=object),
-        dynamics=np.array([_as_expression(e) for e in dynamics], dtype=object),
-        output=np.array(output_expressions, dtype=object),
-        time_period=time_period,
+    core = builder.AddNamedSystem(
+        name,
+        SymbolicVectorSystem(
+            time=time,
+            state=np.array(list(state), dtype=object),
+            input=np.array([v for _, variables in inputs for v in variables], dtype=object),
+            dynamics=np.array([_as_expression(e) for e in dynamics], dtype=object),
+            output=np.array(
+                [_as_expression(e) for _, expressions in outputs for e in expressions],
+                dtype=object,
+            ),
+            time_period=time_period,
+        ),
     )
-    builder = DiagramBuilder()
-    builder.AddNamedSystem("dynamics", core)
-    # Multiplexer and Demultiplexer only where a port is shared: each extra system adds cache
+    ports = PortMap()
+    # A Multiplexer or Demultiplexer only where a port is shared: each extra system adds cache
     # invalidation work to every simulation step.
     if len(inputs) == 1:
-        builder.ExportInput(core.get_input_port(), inputs[0][0])
+        ports.inputs[inputs[0][0]] = core.get_input_port()
     elif inputs:
-        sizes = [len(variables) for _, variables in inputs]
-        mux = builder.AddNamedSystem("inputs", Multiplexer(sizes))
+        mux = builder.AddNamedSystem(
+            f"{name}.inputs", Multiplexer([len(variables) for _, variables in inputs])
+        )
         builder.Connect(mux.get_output_port(0), core.get_input_port())
         for index, (port_name, _) in enumerate(inputs):
-            builder.ExportInput(mux.get_input_port(index), port_name)
+            ports.inputs[port_name] = mux.get_input_port(index)
     if len(outputs) == 1:
-        builder.ExportOutput(core.get_output_port(), outputs[0][0])
+        ports.outputs[outputs[0][0]] = core.get_output_port()
     else:
-        sizes = [len(expressions) for _, expressions in outputs]
-        demux = builder.AddNamedSystem("outputs", Demultiplexer(sizes))
+        demux = builder.AddNamedSystem(
+            f"{name}.outputs", Demultiplexer([len(expressions) for _, expressions in outputs])
+        )
         builder.Connect(core.get_output_port(), demux.get_input_port(0))
         for index, (port_name, _) in enumerate(outputs):
-            builder.ExportOutput(demux.get_output_port(index), port_name)
-    diagram = builder.Build()
-    diagram.set_name(name)
-    return diagram
+            ports.outputs[port_name] = demux.get_output_port(index)
+    return ports
 
 
 def _as_expression(value) -> Expression:

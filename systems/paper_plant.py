@@ -10,17 +10,18 @@ With B of order 1e-7 m/A this plant barely moves: that is the paper's own model,
 """
 
 from pydrake.symbolic import MakeVectorVariable, Variable
-from pydrake.systems.framework import Diagram
+from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from maskless.systems.named_symbolic_system import (
+    PortMap,
+    add_named_symbolic_system,
+    as_diagram,
     building_expressions,
-    make_named_symbolic_system,
 )
 from maskless.systems.paper_parameters import IdentifiedModel
 from maskless.systems.valve_map import effective_valve_current
 
 
-@building_expressions
 def make_paper_plant(
     model: IdentifiedModel,
     camera_height_m: float,
@@ -28,7 +29,30 @@ def make_paper_plant(
     valve_saturation_current_a: float,
     name: str = "paper_plant",
 ) -> Diagram:
-    """Builds the paper plant.
+    """The paper plant as a Diagram (see ``add_paper_plant``)."""
+    return as_diagram(
+        name,
+        lambda builder: add_paper_plant(
+            builder,
+            model,
+            camera_height_m,
+            valve_starting_current_a,
+            valve_saturation_current_a,
+            name,
+        ),
+    )
+
+
+@building_expressions
+def add_paper_plant(
+    builder: DiagramBuilder,
+    model: IdentifiedModel,
+    camera_height_m: float,
+    valve_starting_current_a: float,
+    valve_saturation_current_a: float,
+    name: str = "paper_plant",
+) -> PortMap:
+    """Adds the paper plant to ``builder``.
 
     .. pydrake_system::
 
@@ -39,12 +63,13 @@ def make_paper_plant(
         - head_height_m
 
     Args:
+        builder: where the plant's system goes.
         model: the identified model in SI (see ``paper_identified_model``).
         camera_height_m: height of the camera whose frame the model's output is in, above the
             table (m); converts distance to head height.
         valve_starting_current_a: no flow below this current (A).
         valve_saturation_current_a: the current is clipped here (A).
-        name: the Diagram's name.
+        name: the system's name.
 
     The model state starts at zero: the head at the operating point, at rest.
     """
@@ -54,7 +79,8 @@ def make_paper_plant(
     u = effective_valve_current(current, valve_starting_current_a, valve_saturation_current_a)
     next_x = model.A @ x + model.B[:, 0] * (u - model.operating_input_a)
     distance = model.operating_output_m + (model.C @ x)[0]
-    return make_named_symbolic_system(
+    return add_named_symbolic_system(
+        builder,
         name,
         inputs=[("valve_current_a", [current])],
         outputs=[("head_height_m", [camera_height_m - distance])],

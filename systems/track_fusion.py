@@ -9,11 +9,13 @@ from collections.abc import Sequence
 
 import numpy as np
 from pydrake.symbolic import MakeVectorVariable
-from pydrake.systems.framework import Diagram
+from pydrake.systems.framework import Diagram, DiagramBuilder
 
 from maskless.systems.named_symbolic_system import (
+    PortMap,
+    add_named_symbolic_system,
+    as_diagram,
     building_expressions,
-    make_named_symbolic_system,
 )
 
 
@@ -50,9 +52,16 @@ def fuse_tracks(states: Sequence[np.ndarray], covariances: Sequence[np.ndarray])
     return fused_state, fused_covariance
 
 
-@building_expressions
 def make_track_fusion(track_names: Sequence[str], name: str = "fusion") -> Diagram:
-    """Builds the fusion site for the named local tracks.
+    """The fusion site as a Diagram (see ``add_track_fusion``)."""
+    return as_diagram(name, lambda builder: add_track_fusion(builder, track_names, name))
+
+
+@building_expressions
+def add_track_fusion(
+    builder: DiagramBuilder, track_names: Sequence[str], name: str = "fusion"
+) -> PortMap:
+    """Adds the fusion site for the named local tracks to ``builder``.
 
     .. pydrake_system::
 
@@ -67,9 +76,10 @@ def make_track_fusion(track_names: Sequence[str], name: str = "fusion") -> Diagr
         - covariance
 
     Args:
+        builder: where the fusion's systems go.
         track_names: one name per local track; the inputs are ``{name}_estimated_state`` (2) and
             ``{name}_covariance`` (4, row-major).
-        name: the Diagram's name.
+        name: the fusion system's name.
 
     The output is a direct function of the inputs (no state), so it always fuses the tracks as they
     are at that instant.
@@ -84,7 +94,8 @@ def make_track_fusion(track_names: Sequence[str], name: str = "fusion") -> Diagr
         states.append(np.array(list(x)))
         covariances.append(np.array(list(p)).reshape(2, 2))
     fused_state, fused_covariance = fuse_tracks(states, covariances)
-    return make_named_symbolic_system(
+    return add_named_symbolic_system(
+        builder,
         name,
         inputs=inputs,
         outputs=[

@@ -356,3 +356,19 @@ def test_non_json_message_encoding_raises(tmp_path):
         writer.finish()
     with pytest.raises(ValueError, match=r"/controller/command.*cbor"):
         read_recording(path)
+
+
+@pytest.mark.parametrize("with_nan", [False, True], ids=["finite", "nan"])
+def test_payload_bytes_are_compact_json_dumps(tmp_path, with_nan):
+    # The writer's fast path must produce exactly json.dumps(payload, separators=(",", ":")).
+    channels = _make_channels(seed=5)
+    edge = np.array([0.1, -0.0, 1e16, 5e-324, 1.7976931348623157e308, np.nan if with_nan else 2.5])
+    channels[0] = Channel(
+        REFERENCE_TOPIC, np.arange(edge.size, dtype=np.int64), {"reference_m": edge}
+    )
+    path = tmp_path / "edge.mcap"
+    write_recording(path, channels)
+    with open(path, "rb") as stream:
+        for _, _, message in make_reader(stream).iter_messages():
+            payload = json.loads(message.data)
+            assert message.data == json.dumps(payload, separators=(",", ":")).encode()

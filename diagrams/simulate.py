@@ -99,12 +99,16 @@ def _nanoseconds(times_s: np.ndarray) -> np.ndarray:
     return np.round(times_s * 1e9).astype(np.int64)
 
 
-def _estimate_columns(state: Signal, covariance: Signal) -> dict:
-    return {
-        "position_m": state.values[0],
-        "velocity_m_s": state.values[1],
-        "covariance": covariance.values.T.reshape(-1, 2, 2),
-    }
+def _estimate_channel(topic: str, state: Signal, covariance: Signal) -> Channel:
+    return Channel(
+        topic,
+        _nanoseconds(state.times_s),
+        {
+            "position_m": state.values[0],
+            "velocity_m_s": state.values[1],
+            "covariance": covariance.values.T.reshape(-1, 2, 2),
+        },
+    )
 
 
 def recording_channels(run: SimulationRun) -> list[Channel]:
@@ -132,17 +136,15 @@ def recording_channels(run: SimulationRun) -> list[Channel]:
             )
         )
     for name in run.closed_loop.sensor_names:
-        state, covariance = s[f"{name}_filter.estimated_state"], s[f"{name}_filter.covariance"]
         channels.append(
-            Channel(
+            _estimate_channel(
                 filter_estimate_topic(name),
-                _nanoseconds(state.times_s),
-                _estimate_columns(state, covariance),
+                s[f"{name}_filter.estimated_state"],
+                s[f"{name}_filter.covariance"],
             )
         )
-    state, covariance = s["fusion.estimated_state"], s["fusion.covariance"]
     channels.append(
-        Channel(FUSION_TOPIC, _nanoseconds(state.times_s), _estimate_columns(state, covariance))
+        _estimate_channel(FUSION_TOPIC, s["fusion.estimated_state"], s["fusion.covariance"])
     )
     channels.append(
         Channel(

@@ -21,26 +21,21 @@ FRAMES = 20000
 RATE_HZ = 15.0
 
 
+SHARED = dict(
+    mount_height_m=2.0,
+    frame_rate_hz=RATE_HZ,
+    latency_s=1 / RATE_HZ,
+    dropout_probability=0.0,
+    incidence_angle_rad=0.0,
+)
+
+
 def v1_config(**changes):
-    base = dict(
-        mount_height_m=2.0,
-        frame_rate_hz=RATE_HZ,
-        latency_s=1 / RATE_HZ,
-        dropout_probability=0.0,
-        incidence_angle_rad=0.0,
-        min_range_m=0.4,
-        max_range_m=4.0,
-    )
-    return KinectV1Config(**{**base, **changes})
+    return KinectV1Config(**{**SHARED, "min_range_m": 0.4, "max_range_m": 4.0, **changes})
 
 
 def v2_config(**changes):
-    base = dict(
-        mount_height_m=2.0,
-        frame_rate_hz=RATE_HZ,
-        latency_s=1 / RATE_HZ,
-        dropout_probability=0.0,
-        incidence_angle_rad=0.0,
+    v2_only = dict(
         min_range_m=0.5,
         max_range_m=4.5,
         offset_m=0.0,
@@ -49,7 +44,7 @@ def v2_config(**changes):
         warmup_elapsed_s=0.0,
         resolution_m=0.001,
     )
-    return KinectV2Config(**{**base, **changes})
+    return KinectV2Config(**{**SHARED, **v2_only, **changes})
 
 
 def frames_at(config, distance_m, count=FRAMES, seed=0):

@@ -88,6 +88,11 @@ def _check_scalar_type(value, annotation, filename: str, dotted_name: str) -> No
     is_bool = isinstance(value, bool) and annotation is not bool
     if is_bool or not isinstance(value, accepted):
         raise ConfigError(f"{filename}: field '{dotted_name}' = {value!r}: expected {description}")
+    # .nan and .inf are valid YAML floats but no physical parameter; NaN would also read as unset.
+    if annotation is float and not math.isfinite(value):
+        raise ConfigError(
+            f"{filename}: field '{dotted_name}' = {value!r}: expected a finite number"
+        )
 
 
 def find_unset_fields(config, prefix: str = "") -> list[str]:

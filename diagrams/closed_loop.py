@@ -85,17 +85,15 @@ def build_paper_closed_loop(config: SimulationConfig, record: bool = True) -> Cl
         "reference",
         TrajectorySource(make_reference_trajectory(config.reference, start_height_m)),
     )
-    controller = add_lqg_controller(builder, model, design, model_camera_height_m, "paper_lqg")
+    valve_currents_a = (ma_to_a(paper.valve_starting_current_ma), saturation_current_a)
+    controller = add_lqg_controller(
+        builder, model, design, model_camera_height_m, valve_currents_a, "paper_lqg"
+    )
     limits = builder.AddNamedSystem(
         "valve_current_limits", Saturation([0.0], [saturation_current_a])
     )
     plant = add_paper_plant(
-        builder,
-        model,
-        model_camera_height_m,
-        ma_to_a(paper.valve_starting_current_ma),
-        saturation_current_a,
-        name="paper_plant",
+        builder, model, model_camera_height_m, *valve_currents_a, name="paper_plant"
     )
     sensor_names = list(config.sensors())
     filters = {}
@@ -110,6 +108,7 @@ def build_paper_closed_loop(config: SimulationConfig, record: bool = True) -> Cl
             acceleration_variance_m2_s4=variances["acceleration_variance_m2_s4"],
             measurement_variance_m2=variances[name],
             initial_height_m=start_height_m,
+            valid_range_m=(sensor_config.min_range_m, sensor_config.max_range_m),
             config=config.local_filter,
         )
         builder.Connect(plant.outputs["head_height_m"], sensor.inputs["head_height_m"])

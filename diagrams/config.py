@@ -1,13 +1,18 @@
 """The configuration of a closed-loop simulation: dataclasses, loaded from the shipped assets and an
 optional user file with ``yaml_load_typed``, then checked before anything runs."""
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from maskless.assets.loader import UNSET, ConfigError, asset_path, find_unset_fields, load_config
 from maskless.systems.depth_sensor import KinectV1Config, KinectV2Config, validate_sensor_config
 from maskless.systems.local_kalman_filter import LocalFilterConfig
-from maskless.systems.paper_parameters import PaperParameters, load_paper_parameters
+from maskless.systems.paper_parameters import (
+    PaperParameters,
+    load_paper_parameters,
+    validate_paper_parameters,
+)
 
 
 @dataclass
@@ -82,13 +87,32 @@ def load_simulation_config(path: str | Path | None = None) -> SimulationConfig:
     return config
 
 
+# Drake's RandomGenerator takes a 32-bit seed; larger ones would wrap onto other seeds silently.
+MAX_RANDOM_SEED = 2**32 - 1
+
+
 def validate_simulation_config(config: SimulationConfig) -> None:
     """Raises ConfigError naming the first field that is unset or out of range."""
     unset = find_unset_fields(config)
     if unset:
         raise ConfigError(f"fields not set: {', '.join(unset)}")
-    if not config.duration_s > 0:
-        raise ConfigError(f"duration_s = {config.duration_s}: expected a positive duration")
+
+    def require(condition, field_name, value, expected):
+        if not condition:
+            raise ConfigError(f"{field_name} = {value}: expected {expected}")
+
+    require(
+        0 <= config.random_seed <= MAX_RANDOM_SEED,
+        "random_seed",
+        config.random_seed,
+        f"an integer in [0, {MAX_RANDOM_SEED}]",
+    )
+    require(
+        math.isfinite(config.duration_s) and config.duration_s > 0,
+        "duration_s",
+        config.duration_s,
+        "a positive, finite duration",
+    )
     reference = config.reference
     if len(reference.step_times_s) != len(reference.step_offsets_m):
         raise ConfigError(
@@ -96,9 +120,20 @@ def validate_simulation_config(config: SimulationConfig) -> None:
             f"step_offsets_m has {len(reference.step_offsets_m)}; expected one offset per time"
         )
     times = reference.step_times_s
-    if any(t <= 0 for t in times) or any(b <= a for a, b in zip(times, times[1:], strict=False)):
-        raise ConfigError(f"reference.step_times_s = {times}: expected positive, increasing times")
+    require(
+        all(t > 0 for t in times) and all(b > a for a, b in zip(times, times[1:], strict=False)),
+        "reference.step_times_s",
+        times,
+        "positive, increasing times",
+    )
     for name, sensor in config.sensors().items():
         validate_sensor_config(name, sensor)
-    if not config.metrics.tolerance_m > 0:
-        raise ConfigError(f"metrics.tolerance_m = {config.metrics.tolerance_m}: expected > 0")
+    for field_name in ("initial_position_std_m", "initial_velocity_std_m_s"):
+        value = getattr(config.local_filter, field_name)
+        require(value > 0, f"local_filter.{field_name}", value, "a positive std")
+    metrics = config.metrics
+    require(metrics.tolerance_m > 0, "metrics.tolerance_m", metrics.tolerance_m, "> 0")
+    for field_name in ("unsettled_evaluation_delay_s", "estimation_start_s"):
+        value = getattr(metrics, field_name)
+        require(value >= 0, f"metrics.{field_name}", value, ">= 0")
+    validate_paper_parameters(config.paper)

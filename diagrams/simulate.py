@@ -31,7 +31,11 @@ from maskless.analysis.recording import (
 )
 from maskless.assets.loader import ConfigError
 from maskless.diagrams.closed_loop import ClosedLoop, build_paper_closed_loop
-from maskless.diagrams.config import SimulationConfig, load_simulation_config
+from maskless.diagrams.config import (
+    SimulationConfig,
+    load_simulation_config,
+    validate_simulation_config,
+)
 from maskless.systems.lqg_controller import closed_loop_poles
 from maskless.systems.units import a_to_ma, m_to_mm
 
@@ -352,12 +356,13 @@ def run_command(args: argparse.Namespace) -> int:
     """`maskless simulate`: returns the process exit code."""
     config = load_simulation_config(args.config)
     if args.duration is not None:
-        if not args.duration > 0:
-            raise ConfigError(f"--duration {args.duration}: expected a positive number of seconds")
         config.duration_s = args.duration
     if args.seed is not None:
         config.random_seed = args.seed
-    args.out.mkdir(parents=True, exist_ok=True)
+    try:
+        validate_simulation_config(config)
+    except ConfigError as error:
+        raise ConfigError(f"command line (--duration/--seed): {error}") from error
 
     def report_progress(simulated_s, duration_s):
         print(f"simulated {simulated_s:.0f} / {duration_s:.0f} s", file=sys.stderr, flush=True)
@@ -365,6 +370,7 @@ def run_command(args: argparse.Namespace) -> int:
     long_run = config.duration_s >= _PROGRESS_MIN_DURATION_S
     run = run_closed_loop(config, progress=report_progress if long_run else None)
     summary = summarize(run)
+    args.out.mkdir(parents=True, exist_ok=True)
     mcap_path = args.out / "run.mcap"
     write_recording(mcap_path, recording_channels(run))
     png_path = plot_run(run, args.out / "run.png")

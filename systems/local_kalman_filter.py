@@ -12,9 +12,11 @@ as σ_a = 2000 mm/s² passes 68 % (a 32 % reduction), far from it.
 
 The filter runs at its camera's frame rate: each tick predicts over one frame period (Eq. 8) and,
 when the frame is usable, updates (Eq. 9). A frame is usable when ``valid`` is set and its distance
-is finite and inside (0, ``max_distance_m``): zeros, NaNs and infinities from the camera never reach
-the estimate, the filter just predicts. Its outputs are the estimate and covariance predicted to the
-current time, so the fusion site can combine tracks from cameras that tick at different instants.
+lies inside the camera's working range: zeros, NaNs and infinities from the camera never reach the
+estimate, the filter just predicts. The first tick, at t = 0, also predicts over a whole frame: the
+configured initial estimate is taken to hold one frame before the start. Its outputs are the
+estimate and covariance predicted to the current time, so the fusion site can combine tracks from
+cameras that tick at different instants.
 """
 
 from dataclasses import dataclass
@@ -42,12 +44,10 @@ class LocalFilterConfig:
     Attributes:
         initial_position_std_m: std of the initial height estimate (m).
         initial_velocity_std_m_s: std of the initial velocity estimate (m/s).
-        max_distance_m: farther frames are rejected as implausible (m).
     """
 
     initial_position_std_m: float = UNSET
     initial_velocity_std_m_s: float = UNSET
-    max_distance_m: float = UNSET
 
 
 def transition_matrix(dt):
@@ -107,6 +107,7 @@ def add_local_kalman_filter(
     acceleration_variance_m2_s4: float,
     measurement_variance_m2: float,
     initial_height_m: float,
+    valid_range_m: tuple[float, float],
     config: LocalFilterConfig,
 ) -> PortMap:
     """Adds one local filter to ``builder``.
@@ -129,6 +130,8 @@ def add_local_kalman_filter(
         acceleration_variance_m2_s4: σ_a² (m²/s⁴).
         measurement_variance_m2: σ_r² (m²).
         initial_height_m: the estimate's start (m); velocity starts at 0.
+        valid_range_m: (nearest, farthest) distance the camera can report (m); frames outside it
+            are not used.
         config: the initial uncertainty and the plausibility gate.
 
     ``estimated_state`` is [height (m), velocity (m/s)] and ``covariance`` the 2x2 P row-major, both
@@ -140,7 +143,6 @@ def add_local_kalman_filter(
         ("measurement_variance_m2", measurement_variance_m2),
         ("initial_position_std_m", config.initial_position_std_m),
         ("initial_velocity_std_m_s", config.initial_velocity_std_m_s),
-        ("max_distance_m", config.max_distance_m),
     ]:
         if not value > 0:
             raise ConfigError(f"{name}: {field_name} = {value}: expected a positive value")
@@ -161,7 +163,10 @@ def add_local_kalman_filter(
     # predicted to the current time, needs the symbolic interval.
     x_prior, P_prior = predict(x, P, frame_period_s, acceleration_variance_m2_s4)
     x_post, P_post = update(x_prior, P_prior, camera_height_m - distance, measurement_variance_m2)
-    usable = logical_and(valid > 0.5, logical_and(distance > 0.0, distance < config.max_distance_m))
+    # Comparisons with NaN are false, so a NaN distance is never usable.
+    usable = logical_and(
+        valid > 0.5, logical_and(distance >= valid_range_m[0], distance <= valid_range_m[1])
+    )
     chosen_x = [if_then_else(usable, x_post[i], x_prior[i]) for i in range(2)]
     chosen_P = [if_then_else(usable, P_post[i, j], P_prior[i, j]) for i, j in _UPPER]
     next_state = [chosen_x[i] - x0[i] for i in range(2)]

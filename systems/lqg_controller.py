@@ -28,6 +28,7 @@ from maskless.systems.named_symbolic_system import (
     building_expressions,
 )
 from maskless.systems.paper_parameters import IdentifiedModel, LqgWeights
+from maskless.systems.valve_map import effective_valve_current
 
 
 @dataclass(frozen=True)
@@ -38,8 +39,9 @@ class LqgDesign:
         K: LQR gain, u = -K x (A/m in SI).
         S: the LQR Riccati solution P of Eq. 29.
         L: the estimator's predictor gain (dimensionless for a distance model).
-        state_for_output: N_x, the steady state per unit output, (I - A) N_x = B N_u, C N_x = 1,
-            with N_u = 0 when the model cannot hold an output without input.
+        state_for_output: N_x, the state that sets the regulator's target for a reference r: the
+            controller regulates x̂ towards N_x r. The paper's regulator has no feedforward path
+            (N_u = 0), so N_x is the least-squares solution of (I - A) N_x = 0, C N_x = 1.
     """
 
     K: np.ndarray
@@ -80,11 +82,18 @@ def closed_loop_poles(model: IdentifiedModel, design: LqgDesign) -> dict[str, np
 
 
 def make_lqg_controller(
-    model: IdentifiedModel, design: LqgDesign, camera_height_m: float, name: str = "lqg_controller"
+    model: IdentifiedModel,
+    design: LqgDesign,
+    camera_height_m: float,
+    valve_currents_a: tuple[float, float],
+    name: str = "lqg_controller",
 ) -> Diagram:
     """The LQG controller as a Diagram (see ``add_lqg_controller``)."""
     return as_diagram(
-        name, lambda builder: add_lqg_controller(builder, model, design, camera_height_m, name)
+        name,
+        lambda builder: add_lqg_controller(
+            builder, model, design, camera_height_m, valve_currents_a, name
+        ),
     )
 
 
@@ -94,6 +103,7 @@ def add_lqg_controller(
     model: IdentifiedModel,
     design: LqgDesign,
     camera_height_m: float,
+    valve_currents_a: tuple[float, float],
     name: str = "lqg_controller",
 ) -> PortMap:
     """Adds the LQG controller to ``builder``.
@@ -113,6 +123,8 @@ def add_lqg_controller(
         model: the model the gains were designed on (SI).
         design: the gains.
         camera_height_m: height of the camera whose distance the model outputs (m).
+        valve_currents_a: the valve's (starting, saturation) currents (A), the static input map
+            the model's input passes through.
         name: the controller's name.
 
     Every sample period the controller reads the fused estimate's height (the measurement y of
@@ -135,7 +147,10 @@ def add_lqg_controller(
         return camera_height_m - height - model.operating_output_m
 
     innovation = model_output(fused[0]) - (C @ x_hat)[0]
-    next_x_hat = A @ x_hat + B[:, 0] * (applied - model.operating_input_a) + L[:, 0] * innovation
+    # The model's input is the current after the valve's static map (the Hammerstein structure it
+    # was identified with), so the estimator sees what the valve passes, not what was asked.
+    passed = effective_valve_current(applied, *valve_currents_a)
+    next_x_hat = A @ x_hat + B[:, 0] * (passed - model.operating_input_a) + L[:, 0] * innovation
     command = model.operating_input_a - (K @ (x_hat - design.state_for_output * held_reference))[0]
     return add_named_symbolic_system(
         builder,

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from maskless.assets.loader import UNSET, asset_path, load_config
+from maskless.assets.loader import UNSET, ConfigError, asset_path, load_config
 from maskless.systems.units import MA_PER_A, MM_PER_M, ma_to_a, mm2_to_m2, mm_to_m
 
 
@@ -18,9 +18,6 @@ class PaperParameters:
     acceleration_variance_mm2: float = UNSET
     measurement_variance_kinect_v1_mm2: float = UNSET
     measurement_variance_kinect_v2_mm2: float = UNSET
-    noise_autocovariance_kinect_v1_mm2: float = UNSET
-    noise_autocovariance_kinect_v2_mm2: float = UNSET
-    vision_frame_rate_hz: float = UNSET
     sample_period_s: float = UNSET
     A: list[list[float]] = field(default_factory=list)
     B_mm_per_ma: list[float] = field(default_factory=list)
@@ -39,6 +36,37 @@ class PaperParameters:
     reported_tracking_band_mm: float = UNSET
     reported_overshoot_mm: float = UNSET
     reported_settle_time_s: float = UNSET
+
+
+def validate_paper_parameters(paper: PaperParameters) -> None:
+    """Raises ConfigError naming the ``paper.*`` field whose value cannot describe Eq. 25-30."""
+
+    def fail(field_name, expected):
+        raise ConfigError(f"paper.{field_name} = {getattr(paper, field_name)}: expected {expected}")
+
+    if np.shape(paper.A) != (2, 2):
+        fail("A", "a 2x2 matrix (Eq. 26)")
+    for field_name in ("B_mm_per_ma", "C", "K"):
+        if np.shape(getattr(paper, field_name)) != (2,):
+            fail(field_name, "2 numbers (Eq. 26)")
+    if paper.D != 0.0:
+        fail("D", "0 (Eq. 26; the plant and controller have no feedthrough)")
+    positive = [
+        "sample_period_s",
+        "lqr_Q_diagonal",
+        "lqr_R",
+        "estimator_Qe_diagonal",
+        "estimator_Re",
+        "acceleration_variance_mm2",
+        "measurement_variance_kinect_v1_mm2",
+        "measurement_variance_kinect_v2_mm2",
+        "valve_saturation_current_ma",
+    ]
+    for field_name in positive:
+        if not getattr(paper, field_name) > 0:
+            fail(field_name, "a positive number")
+    if not 0 <= paper.valve_starting_current_ma < paper.valve_saturation_current_ma:
+        fail("valve_starting_current_ma", "0 <= starting current < valve_saturation_current_ma")
 
 
 def load_paper_parameters() -> PaperParameters:

@@ -15,9 +15,8 @@ PERIOD_S = 1 / 15
 SIGMA_A2 = 2000e-6  # the paper's "sigma_a = 2000 mm^2", as a variance in m^2/s^4
 SIGMA_R2 = 70e-6
 START_M = 0.2
-CONFIG = LocalFilterConfig(
-    initial_position_std_m=0.01, initial_velocity_std_m_s=0.02, max_distance_m=5.0
-)
+VALID_RANGE_M = (0.4, 4.0)
+CONFIG = LocalFilterConfig(initial_position_std_m=0.01, initial_velocity_std_m_s=0.02)
 
 
 @pytest.fixture(scope="module")
@@ -29,6 +28,7 @@ def kf():
         acceleration_variance_m2_s4=SIGMA_A2,
         measurement_variance_m2=SIGMA_R2,
         initial_height_m=START_M,
+        valid_range_m=VALID_RANGE_M,
         config=CONFIG,
     )
 
@@ -103,8 +103,8 @@ def test_one_step_matches_eq_8_9(kf, distance):
 
 @pytest.mark.parametrize(
     "distance, valid",
-    [(0.0, 1.0), (np.nan, 1.0), (np.inf, 1.0), (-0.3, 1.0), (0.79, 0.0), (7.0, 1.0)],
-    ids=["zero", "nan", "inf", "negative", "flagged_invalid", "beyond_max_distance"],
+    [(0.0, 1.0), (np.nan, 1.0), (np.inf, 1.0), (-0.3, 1.0), (0.79, 0.0), (7.0, 1.0), (1e-6, 1.0)],
+    ids=["zero", "nan", "inf", "negative", "flagged_invalid", "beyond_range", "nearer_than_range"],
 )
 def test_unusable_frames_only_predict(kf, distance, valid):
     x = np.array([0.21, 0.003])
@@ -183,5 +183,6 @@ def test_bad_parameters_are_refused():
             acceleration_variance_m2_s4=1.0,
             measurement_variance_m2=0.0,
             initial_height_m=0.2,
+            valid_range_m=VALID_RANGE_M,
             config=CONFIG,
         )

@@ -65,8 +65,13 @@ def test_state_for_output(model):
     np.testing.assert_allclose(N_x, [1.0, 1.0], atol=2e-3)  # both states are the output
 
 
-def test_controller_ports_and_equations(model, design):
-    controller = make_lqg_controller(model, design, CAMERA_M, name="paper_lqg")
+@pytest.mark.parametrize(
+    "applied, passed",
+    [(0.09, 0.09), (0.03, 0.0), (0.2, 0.165)],
+    ids=["linear_range", "below_starting_current", "above_saturation"],
+)
+def test_controller_ports_and_equations(model, design, applied, passed):
+    controller = make_lqg_controller(model, design, CAMERA_M, (0.060, 0.165), name="paper_lqg")
     assert controller.get_name() == "paper_lqg"
     assert port_layout(controller) == (
         {"fused_estimated_state": 2, "reference_head_height_m": 1, "applied_current_a": 1},
@@ -76,7 +81,7 @@ def test_controller_ports_and_equations(model, design):
     x_hat = np.array([0.001, 0.0015])
     held_reference = -0.004  # the model's output coordinate of the reference read last tick
     context.SetDiscreteState(np.append(x_hat, held_reference))
-    height, reference, applied = 0.205, 0.212, 0.09
+    height, reference = 0.205, 0.212
     controller.GetInputPort("fused_estimated_state").FixValue(context, [height, 0.01])
     controller.GetInputPort("reference_head_height_m").FixValue(context, [reference])
     controller.GetInputPort("applied_current_a").FixValue(context, [applied])
@@ -88,12 +93,13 @@ def test_controller_ports_and_equations(model, design):
         u_expected[0], rel=1e-12
     )
     # Eq. 34: x(k+1) = A x - L (C x - y) + B u, y and u as deviations in the model's coordinates
-    # (distance below the camera), and the new reference is held.
+    # (distance below the camera), u the current the valve passes (no flow below 60 mA, clipped at
+    # 165 mA), and the new reference is held.
     y = CAMERA_M - height - model.operating_output_m
     expected_next = (
         model.A @ x_hat
         - design.L[:, 0] * ((model.C @ x_hat)[0] - y)
-        + model.B[:, 0] * (applied - model.operating_input_a)
+        + model.B[:, 0] * (passed - model.operating_input_a)
     )
     updated = controller.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
     np.testing.assert_allclose(updated[:2], expected_next, rtol=1e-12)

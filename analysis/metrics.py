@@ -1,6 +1,6 @@
 """Tracking and estimation figures of a closed-loop run, from sampled signals."""
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -27,9 +27,6 @@ class TrackingMetrics:
     max_abs_error_m: float
     overshoot_m: float | None
     final_error_m: float
-
-    def as_dict(self) -> dict:
-        return asdict(self)
 
 
 def tracking_metrics(
@@ -66,7 +63,8 @@ def tracking_metrics(
             f"(samples end at {times_s[-1]} s)"
         )
     after_indices = np.flatnonzero(after)
-    outside = np.abs(error[after_indices]) > tolerance_m
+    # "not inside" rather than "outside": a NaN error must not count as settled.
+    outside = ~(np.abs(error[after_indices]) <= tolerance_m)
     settled = not outside[-1]
     if settled:
         last_outside = np.flatnonzero(outside)

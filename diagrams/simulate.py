@@ -17,7 +17,6 @@ import numpy as np
 from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import Simulator
 
-from maskless.analysis.metrics import estimate_error_std_m, tracking_metrics
 from maskless.analysis.plots import plot_closed_loop
 from maskless.analysis.recording import (
     COMMAND_TOPIC,
@@ -29,6 +28,7 @@ from maskless.analysis.recording import (
     sensor_measurement_topic,
     write_recording,
 )
+from maskless.analysis.summary import format_summary, summarize
 from maskless.assets.loader import ConfigError
 from maskless.diagrams.closed_loop import ClosedLoop, build_paper_closed_loop
 from maskless.diagrams.config import (
@@ -36,8 +36,6 @@ from maskless.diagrams.config import (
     load_simulation_config,
     validate_simulation_config,
 )
-from maskless.systems.lqg_controller import closed_loop_poles
-from maskless.systems.units import a_to_ma, m_to_mm
 
 # Long runs report progress this often (fraction of the duration), on stderr.
 _PROGRESS_CHUNKS = 10
@@ -158,143 +156,6 @@ def recording_channels(run: SimulationRun) -> list[Channel]:
         )
     )
     return channels
-
-
-def summarize(run: SimulationRun) -> dict:
-    """The run's figures as a JSON-ready dict (mm, mA and s, what people read)."""
-    config, loop, s = run.config, run.closed_loop, run.signals
-    times = s["head_height"].times_s
-    head, reference = s["head_height"].values[0], s["reference"].values[0]
-    steps = [t for t in config.reference.step_times_s if t <= times[-1]]
-    metrics = tracking_metrics(
-        times,
-        head,
-        reference,
-        last_step_time_s=steps[-1] if steps else 0.0,
-        tolerance_m=config.metrics.tolerance_m,
-        unsettled_evaluation_delay_s=config.metrics.unsettled_evaluation_delay_s,
-    )
-    # Estimates are judged once the filters have forgotten their initial guess, whatever the head.
-    start = min(config.metrics.estimation_start_s, float(times[-1]) / 2)
-    estimation = {"evaluation_start_s": start}
-    for name in loop.sensor_names:
-        track = s[f"{name}_filter.estimated_state"].values[0]
-        estimation[f"{name}_error_std_mm"] = m_to_mm(
-            estimate_error_std_m(times, track, head, start)
-        )
-        estimation[f"{name}_valid_fraction"] = float(np.mean(s[f"{name}.valid"].values[0] > 0.5))
-    fused = s["fusion.estimated_state"].values[0]
-    estimation["fused_error_std_mm"] = m_to_mm(estimate_error_std_m(times, fused, head, start))
-    estimation["fused_error_mean_mm"] = m_to_mm(
-        float(np.mean(fused[times >= start] - head[times >= start]))
-    )
-
-    model, design, paper = loop.model, loop.design, config.paper
-    # The model's output is a distance below the camera; the head rises as it shrinks.
-    lift_gain_mm_per_ma = -m_to_mm(model.dc_gain_m_per_a()) / a_to_ma(1.0)
-    lift_limits = [
-        lift_gain_mm_per_ma * (current - paper.operating_current_ma)
-        for current in (0.0, paper.valve_saturation_current_ma)
-    ]
-    poles = closed_loop_poles(model, design)
-    command = s["command"].values[0]
-
-    def tracking_mm(value):
-        return None if value is None else m_to_mm(value)
-
-    return {
-        "plant": "paper",
-        "controller": "paper-lqg",
-        "duration_s": config.duration_s,
-        "random_seed": config.random_seed,
-        "tracking": {
-            "tolerance_mm": m_to_mm(config.metrics.tolerance_m),
-            "settled": metrics.settled,
-            "settle_time_s": metrics.settle_time_s,
-            "evaluation_start_s": metrics.evaluation_start_s,
-            "rms_error_mm": m_to_mm(metrics.rms_error_m),
-            "p95_abs_error_mm": m_to_mm(metrics.p95_abs_error_m),
-            "max_abs_error_mm": m_to_mm(metrics.max_abs_error_m),
-            "overshoot_mm": tracking_mm(metrics.overshoot_m),
-            "final_error_mm": m_to_mm(metrics.final_error_m),
-            "head_travel_mm": m_to_mm(float(head.max() - head.min())),
-            "reference_travel_mm": m_to_mm(float(reference.max() - reference.min())),
-        },
-        "estimation": estimation,
-        "paper_model": {
-            "lift_gain_mm_per_ma": lift_gain_mm_per_ma,
-            "steady_lift_range_mm": sorted(lift_limits),
-            "lqr_gain_ma_per_mm": (design.K[0] * a_to_ma(1.0) / m_to_mm(1.0)).tolist(),
-            "open_loop_pole_magnitudes": np.abs(poles["open_loop"]).tolist(),
-            "regulator_pole_magnitudes": np.abs(poles["regulator"]).tolist(),
-            "estimator_pole_magnitudes": np.abs(poles["estimator"]).tolist(),
-            "command_range_ma": [a_to_ma(float(command.min())), a_to_ma(float(command.max()))],
-            "operating_current_ma": paper.operating_current_ma,
-        },
-        "timing": {
-            "wall_time_s": run.wall_time_s,
-            "real_time_factor": config.duration_s / run.wall_time_s,
-        },
-    }
-
-
-def _format_optional(value, unit, digits=2):
-    return "never" if value is None else f"{value:.{digits}f} {unit}"
-
-
-def format_summary(summary: dict) -> str:
-    """The summary as lines a person reads."""
-    t, e, p = summary["tracking"], summary["estimation"], summary["paper_model"]
-    band = t["tolerance_mm"]
-    settle = (
-        f"settled within ±{band:g} mm after {t['settle_time_s']:.2f} s"
-        if t["settled"]
-        else f"did NOT settle within ±{band:g} mm; errors below from "
-        f"t = {t['evaluation_start_s']:.1f} s"
-    )
-    lines = [
-        f"maskless simulate: plant '{summary['plant']}', controller '{summary['controller']}', "
-        f"{summary['duration_s']:g} s simulated, seed {summary['random_seed']}",
-        "",
-        "Tracking (true head height vs reference)",
-        f"  {settle}",
-        f"  RMS {t['rms_error_mm']:.3f} mm, p95 {t['p95_abs_error_mm']:.3f} mm, "
-        f"max {t['max_abs_error_mm']:.3f} mm, final {t['final_error_mm']:+.3f} mm",
-        f"  overshoot {_format_optional(t['overshoot_mm'], 'mm', 3)}; the reference moved "
-        f"{t['reference_travel_mm']:.2f} mm, the head {t['head_travel_mm']:.4f} mm",
-        "",
-        f"Estimation (estimate - true head height, std, from t = {e['evaluation_start_s']:.0f} s)",
-    ]
-    for key, value in e.items():
-        if key.endswith("_error_std_mm"):
-            name = key.removesuffix("_error_std_mm")
-            valid = e.get(f"{name}_valid_fraction")
-            extra = f" ({100 * valid:.2f} % valid frames)" if valid is not None else ""
-            lines.append(f"  {name:<10} {value:.3f} mm{extra}")
-    lines.append(f"  fused mean error {e['fused_error_mean_mm']:+.3f} mm")
-    lo, hi = p["steady_lift_range_mm"]
-    lines += [
-        "",
-        "Why the paper's loop cannot track (its own model, Eq. 26)",
-        f"  steady-state lift {p['lift_gain_mm_per_ma']:.3e} mm/mA: the whole valve range "
-        f"(0-165 mA) holds the head between {lo:+.4f} and {hi:+.4f} mm of its start",
-        f"  LQR gain K = [{p['lqr_gain_ma_per_mm'][0]:.4f}, "
-        f"{p['lqr_gain_ma_per_mm'][1]:.4f}] mA/mm; "
-        f"pole magnitudes open loop {_poles(p['open_loop_pole_magnitudes'])}, "
-        f"with LQR {_poles(p['regulator_pole_magnitudes'])}",
-        f"  command stayed in [{p['command_range_ma'][0]:.3f}, {p['command_range_ma'][1]:.3f}] mA "
-        f"around the operating point {p['operating_current_ma']:.2f} mA",
-        "",
-        f"Wall time {summary['timing']['wall_time_s']:.3f} s "
-        f"({summary['timing']['real_time_factor']:.0f}x real time)",
-    ]
-    if "files" in summary:
-        lines += ["Files:"] + [f"  {kind}: {path}" for kind, path in summary["files"].items()]
-    return "\n".join(lines)
-
-
-def _poles(magnitudes) -> str:
-    return "[" + ", ".join(f"{m:.6f}" for m in magnitudes) + "]"
 
 
 def plot_run(run: SimulationRun, path: Path) -> Path:

@@ -34,6 +34,7 @@ from maskless.systems.named_symbolic_system import (
     as_diagram,
     building_expressions,
 )
+from maskless.systems.units import mm_to_m
 
 # Kinect v1 disparity-to-depth model z = 1 / (DISPARITY_SLOPE d + DISPARITY_INTERCEPT), d the 11-bit
 # raw disparity (shared/DESIGN.md).
@@ -99,7 +100,7 @@ def kinect_v2_noise_std_m(distance_m, incidence_angle_rad=0.0):
     """Axial noise std of Kinect v2 (Fankhauser et al. 2015), m; ``distance_m`` in m."""
     lateral = incidence_angle_rad**2 / (math.pi / 2 - incidence_angle_rad) ** 2
     std_mm = 1.5 - 0.5 * distance_m + 0.3 * distance_m**2 + 0.1 * distance_m**1.5 * lateral
-    return std_mm / 1000.0
+    return mm_to_m(std_mm)
 
 
 def kinect_v1_quantised_distance_m(distance_m):
@@ -107,11 +108,6 @@ def kinect_v1_quantised_distance_m(distance_m):
     disparity = (1.0 / distance_m - DISPARITY_INTERCEPT) / DISPARITY_SLOPE
     level = floor_any(disparity + 0.5)
     return 1.0 / (DISPARITY_SLOPE * level + DISPARITY_INTERCEPT)
-
-
-def kinect_v1_quantisation_step_m(distance_m):
-    """Distance between adjacent disparity levels at ``distance_m``, ≈ 0.00307 z² (m)."""
-    return -DISPARITY_SLOPE * distance_m**2
 
 
 def sqrt_any(value):
@@ -124,7 +120,7 @@ def floor_any(value):
 
 def latency_frames(config: DepthSensorConfig) -> int:
     """The configured latency as whole frames (at least one)."""
-    return max(1, round(config.latency_s * config.frame_rate_hz))
+    return max(1, math.floor(config.latency_s * config.frame_rate_hz + 0.5))
 
 
 def validate_sensor_config(name: str, config: DepthSensorConfig) -> None:
@@ -137,7 +133,11 @@ def validate_sensor_config(name: str, config: DepthSensorConfig) -> None:
     if not config.frame_rate_hz > 0:
         fail("frame_rate_hz", "a positive rate")
     if not config.latency_s >= 0.5 / config.frame_rate_hz:
-        fail("latency_s", f"at least one frame period, {1 / config.frame_rate_hz:.4f} s")
+        fail(
+            "latency_s",
+            f"at least half a frame period, {0.5 / config.frame_rate_hz:.4f} s (it is rounded "
+            "to whole frames, at least one)",
+        )
     if not 0.0 <= config.dropout_probability < 1.0:
         fail("dropout_probability", "a probability in [0, 1)")
     if not 0.0 <= config.incidence_angle_rad < math.pi / 2:
@@ -187,7 +187,7 @@ def add_depth_sensor(builder: DiagramBuilder, name: str, config: DepthSensorConf
         f"{name}.noise", RandomSource(RandomDistribution.kGaussian, 2, period_s)
     )
     ports = _add_frame_dynamics(builder, name, config, period_s)
-    builder.Connect(noise.get_output_port(0), ports.inputs.pop("standard_normal"))
+    builder.Connect(noise.get_output_port(), ports.inputs.pop("standard_normal"))
     return ports
 
 

@@ -115,7 +115,7 @@ def add_named_symbolic_system(
         mux = builder.AddNamedSystem(
             f"{name}.inputs", Multiplexer([len(variables) for _, variables in inputs])
         )
-        builder.Connect(mux.get_output_port(0), core.get_input_port())
+        builder.Connect(mux.get_output_port(), core.get_input_port())
         for index, (port_name, _) in enumerate(inputs):
             ports.inputs[port_name] = mux.get_input_port(index)
     if len(outputs) == 1:
@@ -124,7 +124,7 @@ def add_named_symbolic_system(
         demux = builder.AddNamedSystem(
             f"{name}.outputs", Demultiplexer([len(expressions) for _, expressions in outputs])
         )
-        builder.Connect(core.get_output_port(), demux.get_input_port(0))
+        builder.Connect(core.get_output_port(), demux.get_input_port())
         for index, (port_name, _) in enumerate(outputs):
             ports.outputs[port_name] = demux.get_output_port(index)
     return ports

@@ -25,7 +25,10 @@ def test_user_file_overrides_only_what_it_names(tmp_path):
     [
         ("kinect_v1:\n  latency_ms: 0.1\n", r"unknown field 'kinect_v1\.latency_ms'"),
         ("kinect_v2:\n  dropout_probability: 1.5\n", r"kinect_v2\.dropout_probability = 1\.5"),
-        ("kinect_v1:\n  latency_s: 0.01\n", r"kinect_v1\.latency_s = 0\.01: expected at least"),
+        (
+            "kinect_v1:\n  latency_s: 0.01\n",
+            r"kinect_v1\.latency_s = 0\.01: expected at least half a frame",
+        ),
         ("duration_s: -1\n", r"duration_s = -1"),
         ("reference:\n  step_times_s: [1.0, 2.0]\n", r"step_offsets_m has 1"),
         (

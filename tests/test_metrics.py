@@ -82,3 +82,17 @@ def test_bad_lengths_raise():
             tolerance_m=TOL,
             unsettled_evaluation_delay_s=1,
         )
+
+
+def test_a_nan_head_is_never_settled():
+    t = np.arange(0, 10, 0.1)
+    head = np.where(t >= 5, np.nan, 0.0)
+    m = tracking_metrics(
+        t,
+        head,
+        np.zeros_like(t),
+        last_step_time_s=0.0,
+        tolerance_m=TOL,
+        unsettled_evaluation_delay_s=1.0,
+    )
+    assert not m.settled

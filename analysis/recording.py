@@ -347,8 +347,9 @@ def _encode_payloads(topic: str, names: list[str], lists: list[list[Any]]) -> li
     """The compact JSON of every message of one channel.
 
     For finite numbers a %-template gives exactly ``json.dumps(payload, separators=(",", ":"))``
-    (both write floats with ``float.__repr__``) at a third of the cost; a channel holding NaN or
-    infinity goes through ``json.dumps`` itself, which spells those its own way.
+    (both write floats with ``float.__repr__``) for less (benchmarks/system_overhead.py measures
+    the whole write both ways); a channel holding NaN or infinity goes through ``json.dumps``
+    itself, which spells those its own way.
     """
     _, schema = schema_for_topic(topic)
     kinds = [schema["properties"][name]["type"] for name in names]

@@ -79,8 +79,8 @@ def build_paper_closed_loop(config: SimulationConfig, record: bool = True) -> Cl
     saturation_current_a = ma_to_a(paper.valve_saturation_current_ma)
 
     builder = DiagramBuilder()
-    # Components are added flat (add_*), not as nested Diagrams: every nesting level costs about as
-    # much per step as its leaf systems, and the loop must run >= 1000x faster than real time.
+    # Components are added flat (add_*), not as nested Diagrams: nesting nearly doubles the cost of
+    # a step (benchmarks/system_overhead.py), and the loop must run >= 1000x faster than real time.
     reference = builder.AddNamedSystem(
         "reference",
         TrajectorySource(make_reference_trajectory(config.reference, start_height_m)),

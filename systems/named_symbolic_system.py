@@ -1,15 +1,15 @@
 """A SymbolicVectorSystem behind named, sized ports, added to a builder or packaged as a Diagram.
 
-Drake's SymbolicVectorSystem runs its expressions in C++ (about ten times cheaper per step than a
-Python LeafSystem callback, which is what lets the closed loop run far faster than real time) and
-supports scalar conversion, so Linearize and AutoDiff work on it. Its ports, however, are one
+Drake's SymbolicVectorSystem runs its expressions in C++ (several times cheaper per update than a
+Python LeafSystem callback; benchmarks/system_overhead.py measures it), which is what lets the
+closed loop run far faster than real time, and it supports scalar conversion, so Linearize and AutoDiff work on it. Its ports, however, are one
 unnamed vector in and one out ("u0", "y0"). The helpers here split that vector into named ports.
 
 Every maskless component comes in two forms built by one function: ``add_*(builder, ...)`` adds its
 systems to a builder and returns a ``PortMap`` (named port handles), and ``make_*(...)`` packages
 the same systems as a Diagram with those port names (``as_diagram``). The closed loop uses the first
-form: each nested Diagram level costs about as much per simulation step as the leaf systems in it,
-and the loop's speed target needs the flat form.
+form: wrapping each system in a Diagram of its own nearly doubles the cost of a simulation step
+(benchmarks/system_overhead.py), and the loop's speed target needs the flat form.
 
 The default state of a SymbolicVectorSystem is zero and cannot be changed from Python, so the
 components store their state relative to the configured initial value: a fresh Context then starts

@@ -2,8 +2,9 @@
 
 Drake's SymbolicVectorSystem runs its expressions in C++ (several times cheaper per update than a
 Python LeafSystem callback; benchmarks/system_overhead.py measures it), which is what lets the
-closed loop run far faster than real time, and it supports scalar conversion, so Linearize and AutoDiff work on it. Its ports, however, are one
-unnamed vector in and one out ("u0", "y0"). The helpers here split that vector into named ports.
+closed loop run far faster than real time, and it supports scalar conversion, so Linearize and
+AutoDiff work on it. Its ports, however, are one unnamed vector in and one out ("u0", "y0"). The
+helpers here split that vector into named ports.
 
 Every maskless component comes in two forms built by one function: ``add_*(builder, ...)`` adds its
 systems to a builder and returns a ``PortMap`` (named port handles), and ``make_*(...)`` packages

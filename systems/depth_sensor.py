@@ -11,8 +11,8 @@ zeros in the authors' logs) reads 0 with ``valid`` = 0, as a Kinect reports inva
 
 import math
 from dataclasses import dataclass
+from statistics import NormalDist
 
-import scipy.stats
 from pydrake.common import RandomDistribution
 from pydrake.symbolic import (
     Expression,
@@ -225,7 +225,7 @@ def _add_frame_dynamics(
     in_range = logical_and(true_distance >= config.min_range_m, true_distance <= config.max_range_m)
     if config.dropout_probability > 0:
         # P(draw < Φ⁻¹(p)) = p for a standard normal draw.
-        threshold = float(scipy.stats.norm.ppf(config.dropout_probability))
+        threshold = NormalDist().inv_cdf(config.dropout_probability)
         valid = logical_and(in_range, dropout_draw >= threshold)
     else:
         valid = in_range

@@ -2,13 +2,13 @@
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")  # files only; no display on CI or on a headless workstation
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+# A bare Figure renders to files with no GUI backend and without importing pyplot, which is both
+# headless-safe and a noticeable part of the command's start-up.
+from matplotlib.figure import Figure
 
-from maskless.systems.units import a_to_ma, m_to_mm  # noqa: E402
+from maskless.systems.units import a_to_ma, m_to_mm
 
 # More points than a figure's pixels only slows rendering; keep every n-th sample past this.
 _MAX_POINTS = 4000
@@ -35,9 +35,8 @@ def plot_closed_loop(
     """Heights (reference, true head, each local track, fused track) above the valve command, on a
     shared time axis. All height arrays are sampled at ``times_s``. Returns the written path."""
     path = Path(path)
-    figure, (heights, command) = plt.subplots(
-        2, 1, sharex=True, figsize=(10, 6.5), height_ratios=[3, 1], constrained_layout=True
-    )
+    figure = Figure(figsize=(10, 6.5), layout="constrained")
+    heights, command = figure.subplots(2, 1, sharex=True, height_ratios=[3, 1])
     for name, track in local_tracks_m.items():
         heights.plot(
             *_thin(times_s, m_to_mm(track)), lw=0.7, alpha=0.6, label=f"{name} local track"
@@ -68,5 +67,4 @@ def plot_closed_loop(
     command.set_xlabel("time (s)")
     command.grid(alpha=0.3)
     figure.savefig(path, dpi=110)
-    plt.close(figure)
     return path

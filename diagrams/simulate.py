@@ -91,9 +91,9 @@ def run_closed_loop(
             progress(context.get_time(), config.duration_s)
     wall_time_s = time.perf_counter() - start
     signals = {}
-    for name, sink in closed_loop.loggers.items():
+    for name, (sink, rows) in closed_loop.loggers.items():
         log = sink.FindLog(context)
-        signals[name] = Signal(log.sample_times().copy(), log.data().copy())
+        signals[name] = Signal(log.sample_times().copy(), log.data()[rows].copy())
     return SimulationRun(config, closed_loop, signals, wall_time_s)
 
 

@@ -4,10 +4,6 @@ from pathlib import Path
 
 import numpy as np
 
-# A bare Figure renders to files with no GUI backend and without importing pyplot, which is both
-# headless-safe and a noticeable part of the command's start-up.
-from matplotlib.figure import Figure
-
 from maskless.systems.units import a_to_ma, m_to_mm
 
 # More points than a figure's pixels only slows rendering; keep every n-th sample past this.
@@ -34,6 +30,10 @@ def plot_closed_loop(
 ) -> Path:
     """Heights (reference, true head, each local track, fused track) above the valve command, on a
     shared time axis. All height arrays are sampled at ``times_s``. Returns the written path."""
+    # Imported here: matplotlib is a third of the command's start-up, and `maskless simulate`
+    # renders in a second process. A bare Figure needs no GUI backend and no pyplot.
+    from matplotlib.figure import Figure
+
     path = Path(path)
     figure = Figure(figsize=(10, 6.5), layout="constrained")
     heights, command = figure.subplots(2, 1, sharex=True, height_ratios=[3, 1])

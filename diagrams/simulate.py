@@ -30,6 +30,7 @@ from maskless.analysis.recording import (
 )
 from maskless.analysis.summary import format_summary, summarize
 from maskless.assets.loader import ConfigError
+from maskless.diagrams.background import BackgroundTask
 from maskless.diagrams.closed_loop import ClosedLoop, build_paper_closed_loop
 from maskless.diagrams.config import (
     SimulationConfig,
@@ -232,9 +233,11 @@ def run_command(args: argparse.Namespace) -> int:
     run = run_closed_loop(config, progress=report_progress if long_run else None)
     summary = summarize(run)
     args.out.mkdir(parents=True, exist_ok=True)
-    mcap_path = args.out / "run.mcap"
+    mcap_path, png_path = args.out / "run.mcap", args.out / "run.png"
+    # The plot renders on the second core while the recording is written.
+    plotting = BackgroundTask(f"plotting {png_path}", plot_run, run, png_path)
     write_recording(mcap_path, recording_channels(run))
-    png_path = plot_run(run, args.out / "run.png")
+    plotting.wait()
     summary["files"] = {"recording": str(mcap_path), "plot": str(png_path)}
     print(json.dumps(summary) if args.json else format_summary(summary))
     return 0

@@ -1,0 +1,110 @@
+"""A single-input, single-output model in innovations form (Eq. 25), in observer canonical form.
+
+    x(k+1) = A x(k) + B u(k) + K e(k),   y(k) = C x(k) + e(k)
+    A = [[-a1, 1, 0, ...], [-a2, 0, 1, ...], ..., [-an, 0, ..., 0]],  C = [1, 0, ..., 0],  D = 0
+
+It is the ARMAX model (Eq. 14-18) A(q) y = B(q) u + C(q) e with A(q) = 1 + a1 q⁻¹ + ... + an q⁻ⁿ,
+B(q) = b1 q⁻¹ + ... + bn q⁻ⁿ and C(q) = A(q) + k1 q⁻¹ + ... + kn q⁻ⁿ (c_i = a_i + k_i), so one
+class serves both. The one-step predictor (Eq. 19-20) is ŷ = (B/C) u + ((C - A)/C) y, which scipy's
+lfilter runs in C; its state is the model's state x, so an initial state enters as lfilter's zi
+(lfilter's transposed direct form is this observer form).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.signal
+
+
+@dataclass(frozen=True)
+class InnovationsModel:
+    """An identified model.
+
+    Attributes:
+        a: A(q) coefficients a1..an (n,).
+        b: B(q) coefficients b1..bn (n,); zeros for a model without input (ARMA).
+        k: innovations gain K (n,).
+        sample_period_s: Ts (s).
+        initial_state: x(0) for the record it was estimated on (n,); zeros when not estimated.
+    """
+
+    a: np.ndarray
+    b: np.ndarray
+    k: np.ndarray
+    sample_period_s: float
+    initial_state: np.ndarray
+
+    @property
+    def order(self) -> int:
+        return self.a.size
+
+    @property
+    def c(self) -> np.ndarray:
+        """C(q) coefficients c1..cn of the noise model."""
+        return self.a + self.k
+
+    def state_space(self) -> dict[str, np.ndarray]:
+        """The discrete A, B, C, D, K matrices."""
+        n = self.order
+        A = np.zeros((n, n))
+        A[:, 0] = -self.a
+        A[: n - 1, 1:] = np.eye(n - 1)
+        C = np.zeros((1, n))
+        C[0, 0] = 1.0
+        return {
+            "A": A,
+            "B": self.b.reshape(n, 1),
+            "C": C,
+            "D": np.zeros((1, 1)),
+            "K": self.k.reshape(n, 1),
+        }
+
+    def poles(self) -> np.ndarray:
+        """Eigenvalues of A (roots of z^n + a1 z^(n-1) + ... + an)."""
+        return np.roots(np.concatenate([[1.0], self.a]))
+
+    def predictor_poles(self) -> np.ndarray:
+        """Eigenvalues of A - K C (roots of C(z)); the predictor is stable when they are inside."""
+        return np.roots(np.concatenate([[1.0], self.c]))
+
+    def is_stable(self) -> bool:
+        return bool(np.all(np.abs(self.poles()) < 1.0))
+
+    def dc_gain(self) -> float:
+        """Steady-state output per unit input, B(1) / A(1)."""
+        return float(self.b.sum() / (1.0 + self.a.sum()))
+
+    def predict(self, u: np.ndarray, y: np.ndarray, initial_state=None) -> np.ndarray:
+        """One-step-ahead prediction ŷ(k | k-1) from x(0) = ``initial_state`` (default: the
+        model's own)."""
+        x0 = self.initial_state if initial_state is None else np.asarray(initial_state, float)
+        denominator = np.concatenate([[1.0], self.c])
+        from_u = np.concatenate([[0.0], self.b])
+        from_y = np.concatenate([[0.0], self.k])
+        predicted, _ = scipy.signal.lfilter(from_u, denominator, u, zi=x0)
+        return predicted + scipy.signal.lfilter(from_y, denominator, y)
+
+    def simulate(self, u: np.ndarray, initial_state=None) -> np.ndarray:
+        """The noise-free response to ``u`` (simulation, no measured outputs used)."""
+        x0 = self.initial_state if initial_state is None else np.asarray(initial_state, float)
+        response, _ = scipy.signal.lfilter(
+            np.concatenate([[0.0], self.b]), np.concatenate([[1.0], self.a]), u, zi=x0
+        )
+        return response
+
+    def free_response(self, samples: int, initial_state=None) -> np.ndarray:
+        """The output from the initial state alone, with no input."""
+        return self.simulate(np.zeros(samples), initial_state)
+
+    def initial_state_for(self, u: np.ndarray, y: np.ndarray, samples: int = 200) -> np.ndarray:
+        """The x(0) that best explains the first ``samples`` of another record, by least squares
+        on the one-step prediction (how MATLAB's compare estimates an initial state)."""
+        samples = min(samples, y.size)
+        u, y = u[:samples], y[:samples]
+        base = self.predict(u, y, np.zeros(self.order))
+        columns = [
+            self.predict(np.zeros(samples), np.zeros(samples), np.eye(self.order)[i])
+            for i in range(self.order)
+        ]
+        solution, *_ = np.linalg.lstsq(np.column_stack(columns), y - base, rcond=None)
+        return solution

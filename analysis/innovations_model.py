@@ -96,15 +96,23 @@ class InnovationsModel:
         """The output from the initial state alone, with no input."""
         return self.simulate(np.zeros(samples), initial_state)
 
-    def initial_state_for(self, u: np.ndarray, y: np.ndarray, samples: int = 200) -> np.ndarray:
-        """The x(0) that best explains the first ``samples`` of another record, by least squares
-        on the one-step prediction (how MATLAB's compare estimates an initial state)."""
-        samples = min(samples, y.size)
-        u, y = u[:samples], y[:samples]
-        base = self.predict(u, y, np.zeros(self.order))
-        columns = [
-            self.predict(np.zeros(samples), np.zeros(samples), np.eye(self.order)[i])
-            for i in range(self.order)
-        ]
+    def initial_state_for(self, u: np.ndarray, y: np.ndarray, horizon: str) -> np.ndarray:
+        """The x(0) that best explains another record, by linear least squares (the response is
+        linear in x(0)), as MATLAB's ``compare`` estimates it.
+
+        Args:
+            u, y: the record.
+            horizon: "one_step" fits the one-step prediction, "simulation" the simulated output.
+        """
+        zeros, no_signal = np.zeros(self.order), np.zeros_like(y, dtype=float)
+        unit_states = np.eye(self.order)
+        if horizon == "one_step":
+            base = self.predict(u, y, zeros)
+            columns = [self.predict(no_signal, no_signal, x0) for x0 in unit_states]
+        elif horizon == "simulation":
+            base = self.simulate(u, zeros)
+            columns = [self.simulate(no_signal, x0) for x0 in unit_states]
+        else:
+            raise ValueError(f"horizon = {horizon!r}: expected 'one_step' or 'simulation'")
         solution, *_ = np.linalg.lstsq(np.column_stack(columns), y - base, rcond=None)
         return solution

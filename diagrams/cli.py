@@ -4,8 +4,9 @@ radiotherapy. Each subcommand's --help says more."""
 import argparse
 import sys
 
+from maskless.analysis.identification_data import RecordError
 from maskless.assets.loader import ConfigError
-from maskless.diagrams import simulate
+from maskless.diagrams import identify, simulate
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -18,6 +19,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     simulate.add_arguments(simulate_parser)
     simulate_parser.set_defaults(handler=simulate.run_command)
+    identify_parser = commands.add_parser(
+        "identify",
+        help="identify models from a recorded experiment and judge them",
+        description=identify.__doc__,
+    )
+    identify.add_arguments(identify_parser)
+    identify_parser.set_defaults(handler=identify.run_command)
     return parser
 
 
@@ -26,7 +34,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.handler(args)
-    except (ConfigError, FileNotFoundError) as error:
+    except (ConfigError, RecordError, FileNotFoundError) as error:
         print(f"maskless {args.command}: error: {error}", file=sys.stderr)
         return 2
 

@@ -1,0 +1,41 @@
+"""Records for identification tests: simulated from known systems, and the authors' own record."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.signal
+
+PAPER_DATA = Path(__file__).resolve().parents[2] / "shared" / "paper-data"
+
+TRUE_SYSTEMS = {
+    2: {"poles": [0.9, 0.7], "b": [0.5, 0.3], "noise_zeros": [0.6, -0.4]},
+    4: {
+        "poles": [0.95, 0.8, 0.5 + 0.3j, 0.5 - 0.3j],
+        "b": [0.2, 0.1, -0.05, 0.02],
+        "noise_zeros": [0.6, -0.4, 0.3, 0.2],
+    },
+}
+
+
+def simulate_record(order: int, noise: str, samples: int, seed: int = 0):
+    """A(q) y = B(q) u + C(q) e with white u; C = 1 for "white" noise (equation error), C with the
+    listed zeros for "coloured". Returns u, y, the true A coefficients [1, a1..an] and b."""
+    system = TRUE_SYSTEMS[order]
+    rng = np.random.default_rng(seed)
+    a = np.real(np.poly(system["poles"]))
+    c = np.real(np.poly(system["noise_zeros"])) if noise == "coloured" else np.array([1.0])
+    u = rng.standard_normal(samples)
+    e = 0.1 * rng.standard_normal(samples)
+    y = scipy.signal.lfilter([0.0, *system["b"]], a, u) + scipy.signal.lfilter(c, a, e)
+    return u, y, a, np.array(system["b"])
+
+
+def paper_record():
+    """The authors' identification record with their preprocessing (whole-record mean removed),
+    or a skip saying why it is absent."""
+    if not (PAPER_DATA / "inputUGWN3.csv").is_file():
+        pytest.skip(f"the authors' record is not at {PAPER_DATA} (shared/ is absent)")
+    u = np.loadtxt(PAPER_DATA / "inputUGWN3.csv")
+    y = np.loadtxt(PAPER_DATA / "outputUGWN3.csv")
+    return u - u.mean(), y - y.mean()

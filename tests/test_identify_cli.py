@@ -1,0 +1,124 @@
+import json
+
+import numpy as np
+import pytest
+import yaml
+from identification_records import PAPER_DATA, paper_record, simulate_record
+
+from maskless.diagrams.cli import main
+
+
+def write_record(tmp_path, u, y):
+    np.savetxt(tmp_path / "u.csv", u)
+    np.savetxt(tmp_path / "y.csv", y)
+    return str(tmp_path / "u.csv"), str(tmp_path / "y.csv")
+
+
+def run_json(capsys, *args):
+    assert main(["identify", *args, "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_report_files_and_json_on_a_simulated_record(tmp_path, capsys):
+    u, y, a, b = simulate_record(2, "white", 4000)
+    u_path, y_path = write_record(tmp_path, u + 80.0, y + 690.0)
+    out = tmp_path / "out"
+    report = run_json(
+        capsys,
+        "--input",
+        u_path,
+        "--output",
+        y_path,
+        "--ts",
+        "0.048",
+        "--orders",
+        "2",
+        "--method",
+        "pem",
+        "--out",
+        str(out),
+    )
+    (model,) = report["models"]
+    assert {
+        "method",
+        "order",
+        "ts",
+        "A",
+        "B",
+        "C",
+        "D",
+        "K",
+        "estimation",
+        "validation",
+    } <= model.keys()
+    assert {"fit_percent_1step", "fit_percent_sim", "mse", "fpe", "aic", "bic", "n"} <= model[
+        "validation"
+    ].keys()
+    assert model["estimation"]["n"] == 2400 and model["validation"]["n"] == 1600
+    assert report["verdict"].startswith("The input explains the output")
+    assert {"naive_last_value", "per_model"} <= report["baselines"].keys()
+    saved = yaml.safe_load((out / "model_pem_order2.yaml").read_text())
+    assert saved["sample_period_s"] == 0.048 and saved["stable"]
+    assert saved["input"]["offset"] == pytest.approx(80.0, abs=0.1)
+    np.testing.assert_allclose(np.sort(np.linalg.eigvals(saved["A"])), [0.7, 0.9], atol=0.01)
+    for name in ("report.json", "compare_pem_order2.png", "residuals_pem_order2.png"):
+        assert (out / name).stat().st_size > 0
+
+
+def test_paper_record_reproduces_matlab_and_finds_the_input_explains_nothing(tmp_path, capsys):
+    paper_record()  # skips with the reason when shared/ is absent
+    report = run_json(
+        capsys,
+        "--input",
+        str(PAPER_DATA / "inputUGWN3.csv"),
+        "--output",
+        str(PAPER_DATA / "outputUGWN3.csv"),
+        "--ts",
+        "0.048",
+        "--orders",
+        "2",
+        "--estimation",
+        "0:0.6",
+        "--validation",
+        "0.6:1",
+        "--detrend",
+        "mean",
+        "--out",
+        str(tmp_path / "paper"),
+    )
+    (model,) = report["models"]
+    assert model["estimation"]["fit_percent_1step"] == pytest.approx(99.144289, abs=0.01)
+    assert model["estimation"]["mse"] == pytest.approx(6.0058e-4, rel=0.01)
+    assert model["estimation"]["fpe"] == pytest.approx(6.014e-4, rel=0.01)
+    # The true holdout: samples 11783..19637 (1-based).
+    assert report["record"]["validation"] == [11782, 19637]
+    assert model["validation"]["n"] == 7855
+    assert report["verdict"].startswith("The input explains essentially nothing")
+    assert model["stable"]
+
+
+def test_lengths_that_differ_are_refused(tmp_path, capsys):
+    u_path, y_path = write_record(tmp_path, np.ones(100), np.ones(99))
+    assert main(["identify", "--input", u_path, "--output", y_path, "--ts", "0.048"]) == 2
+    error = capsys.readouterr().err
+    assert "u.csv has 100 values" in error and "y.csv has 99" in error
+
+
+def test_identify_reads_a_maskless_recording(tmp_path, capsys):
+    out = tmp_path / "sim"
+    assert main(["simulate", "--duration", "60", "--out", str(out), "--json"]) == 0
+    capsys.readouterr()
+    report = run_json(
+        capsys,
+        "--input",
+        str(out / "run.mcap"),
+        "--ts",
+        "0.048",
+        "--orders",
+        "2",
+        "--out",
+        str(tmp_path / "id"),
+    )
+    (model,) = report["models"]
+    assert model["estimation"]["n"] + model["validation"]["n"] == report["record"]["samples"]
+    assert report["record"]["samples"] == pytest.approx(60 / 0.048, abs=2)

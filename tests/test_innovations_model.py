@@ -1,0 +1,60 @@
+import numpy as np
+import pytest
+import scipy.signal
+
+from maskless.analysis.innovations_model import InnovationsModel
+
+MODEL = InnovationsModel(
+    a=np.array([-1.5, 0.56]),
+    b=np.array([0.4, -0.1]),
+    k=np.array([0.3, -0.2]),
+    sample_period_s=0.048,
+    initial_state=np.array([0.5, -0.2]),
+)
+
+
+def recursion(model, u, y, x0, one_step):
+    """Eq. 25 run sample by sample: x(k+1) = A x + B u + K (y - C x) (one step) or A x + B u."""
+    m = model.state_space()
+    x, out = np.array(x0, float), []
+    for uk, yk in zip(u, y, strict=True):
+        yhat = (m["C"] @ x)[0]
+        out.append(yhat)
+        x = m["A"] @ x + m["B"][:, 0] * uk + (m["K"][:, 0] * (yk - yhat) if one_step else 0)
+    return np.array(out)
+
+
+def test_one_step_prediction_matches_the_state_space_recursion():
+    rng = np.random.default_rng(1)
+    u, y = rng.normal(size=300), rng.normal(size=300)
+    np.testing.assert_allclose(
+        MODEL.predict(u, y), recursion(MODEL, u, y, MODEL.initial_state, True), atol=1e-12
+    )
+
+
+def test_simulation_matches_the_recursion_and_scipy():
+    u = np.random.default_rng(2).normal(size=300)
+    simulated = MODEL.simulate(u, np.zeros(2))
+    np.testing.assert_allclose(simulated, recursion(MODEL, u, u, np.zeros(2), False), atol=1e-12)
+    m = MODEL.state_space()
+    _, reference, _ = scipy.signal.dlsim((m["A"], m["B"], m["C"], m["D"], 1.0), u)
+    np.testing.assert_allclose(simulated, reference[:, 0], atol=1e-12)
+
+
+def test_poles_and_dc_gain_match_the_matrices():
+    m = MODEL.state_space()
+    np.testing.assert_allclose(
+        np.sort_complex(MODEL.poles()), np.sort_complex(np.linalg.eigvals(m["A"]))
+    )
+    dc = (m["C"] @ np.linalg.solve(np.eye(2) - m["A"], m["B"]))[0, 0]
+    assert MODEL.dc_gain() == pytest.approx(dc)
+    assert MODEL.is_stable()
+
+
+@pytest.mark.parametrize("horizon", ["one_step", "simulation"])
+def test_initial_state_is_recovered_from_a_record(horizon):
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=400)
+    x0 = np.array([1.5, -0.7])
+    y = MODEL.simulate(u, x0)  # noise-free: both horizons must find x0 exactly
+    np.testing.assert_allclose(MODEL.initial_state_for(u, y, horizon), x0, atol=1e-9)

@@ -17,8 +17,9 @@ import numpy as np
 from maskless.analysis.fit_metrics import evaluate_fit, fit_percent
 from maskless.analysis.innovations_model import InnovationsModel
 from maskless.analysis.prediction_error import estimate_arx, estimate_pem, parameter_count
+from maskless.analysis.subspace import estimate_n4sid
 
-METHODS = ("pem", "armax", "arx")
+METHODS = ("pem", "armax", "arx", "n4sid")
 
 # Verdict thresholds, in fit points on the validation part (see ``verdict``).
 _INPUT_ADDS_NOTHING_1STEP = 0.1
@@ -57,7 +58,8 @@ def fit(
     progress: Callable[[int, float], None] | None = None,
 ) -> FittedModel:
     """Fits one model: "pem" (innovations-form state space) and "armax" (the same model set,
-    ARMAX(n, n, n)) by prediction error, "arx" by least squares (zero initial state)."""
+    ARMAX(n, n, n)) by prediction error, "arx" by least squares (zero initial state), "n4sid" by
+    subspace identification (PO-MOESP)."""
     if method in ("pem", "armax"):
         model = estimate_pem(
             part.u,
@@ -70,6 +72,11 @@ def fit(
         return FittedModel(method, model, estimate_initial_state)
     if method == "arx":
         return FittedModel(method, estimate_arx(part.u, part.y, order, sample_period_s), False)
+    if method == "n4sid":
+        model, _ = estimate_n4sid(
+            part.u, part.y, order, sample_period_s, estimate_initial_state=estimate_initial_state
+        )
+        return FittedModel(method, model, estimate_initial_state)
     raise ValueError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
 
 
@@ -162,6 +169,17 @@ def verdict(figures: dict, baselines: dict, part_name: str) -> str:
     return f"The input explains part of the output: {evidence}."
 
 
+def beats_baselines(figures: dict, baselines: dict, naive: dict, part_name: str) -> dict:
+    """Whether the model does better than each baseline on one part (one-step fit against the
+    naive predictor and the ARMA, simulation fit against the initial state's free response)."""
+    return {
+        "naive_last_value": figures["fit_percent_1step"] > naive[part_name]["fit_percent_1step"],
+        "arma": figures["fit_percent_1step"] > baselines["arma"][part_name]["fit_percent_1step"],
+        "free_response": figures["fit_percent_sim"]
+        > baselines["free_response"][part_name]["fit_percent_sim"],
+    }
+
+
 def identify(
     method: str,
     estimation: Part,
@@ -193,6 +211,12 @@ def identify(
             "dc_gain": model.dc_gain(),
             **figures,
             "verdict": verdict(figures[validation.name], model_baselines, validation.name),
+            "beats_on_validation": beats_baselines(
+                figures[validation.name],
+                model_baselines,
+                naive_figures([validation]),
+                validation.name,
+            ),
         }
         if method == "armax":
             entry["polynomials"] = {

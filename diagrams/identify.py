@@ -265,6 +265,9 @@ def format_report(report: dict, out: Path) -> str:
                 f"sim {part['fit_percent_sim']:.2f} %, MSE {part['mse']:.6g}, "
                 f"FPE {part['fpe']:.6g}, n {part['n']}"
             )
+        beaten = [name for name, beats in model["beats_on_validation"].items() if not beats]
+        if beaten:
+            lines.append(f"  does not beat on validation: {', '.join(beaten)}")
         if "warning" in model:
             lines.append(f"  WARNING: {model['warning']}")
     naive = report["baselines"]["naive_last_value"]

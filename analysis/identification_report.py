@@ -89,14 +89,17 @@ def _initial_state(fitted: FittedModel, part: Part, estimation: Part, horizon: s
     return model.initial_state_for(part.u, part.y, horizon)
 
 
-def part_figures(fitted: FittedModel, part: Part, estimation: Part) -> dict:
-    """fit_percent_1step, fit_percent_sim, mse, fpe, naic, aic, bic and n of one part; the error
-    figures are those of the one-step prediction."""
+def part_figures(
+    fitted: FittedModel, part: Part, estimation: Part, k_step: int | None = None
+) -> dict:
+    """fit_percent_1step, fit_percent_sim, mse, fpe, naic, aic, bic and n of one part, and
+    fit_percent_{k}step when ``k_step`` is given (from zero initial conditions); the error figures
+    are those of the one-step prediction."""
     model = fitted.model
     one_step = model.predict(part.u, part.y, _initial_state(fitted, part, estimation, "one_step"))
     simulated = model.simulate(part.u, _initial_state(fitted, part, estimation, "simulation"))
     metrics = evaluate_fit(part.y, one_step, fitted.parameters)
-    return {
+    figures = {
         "fit_percent_1step": metrics.fit_percent,
         "fit_percent_sim": fit_percent(part.y, simulated),
         "mse": metrics.mse,
@@ -106,6 +109,11 @@ def part_figures(fitted: FittedModel, part: Part, estimation: Part) -> dict:
         "bic": metrics.bic,
         "n": metrics.n,
     }
+    if k_step is not None:
+        k_ahead = model.predict_k_steps(part.u, part.y, k_step)
+        # The first k samples have no k-step prediction from data.
+        figures[f"fit_percent_{k_step}step"] = fit_percent(part.y[k_step:], k_ahead[k_step:])
+    return figures
 
 
 def baseline_figures(fitted: FittedModel, parts: list[Part]) -> dict:
@@ -188,6 +196,7 @@ def identify(
     sample_period_s: float,
     estimate_initial_state: bool = True,
     progress: Callable[[int, float], None] | None = None,
+    k_step: int | None = None,
 ) -> tuple[dict, list[FittedModel]]:
     """Fits each order and builds the report (the JSON of `maskless identify`)."""
     parts = [estimation, validation]
@@ -195,7 +204,7 @@ def identify(
     for order in orders:
         fitted = fit(method, estimation, order, sample_period_s, estimate_initial_state, progress)
         model = fitted.model
-        figures = {part.name: part_figures(fitted, part, estimation) for part in parts}
+        figures = {part.name: part_figures(fitted, part, estimation, k_step) for part in parts}
         model_baselines = baseline_figures(fitted, parts)
         matrices = model.state_space()
         entry = {
@@ -237,6 +246,7 @@ def identify(
         "horizons": {
             "1step": "one-step-ahead prediction",
             "sim": "simulation from the input alone",
+            "kstep": "k-step-ahead prediction from zero initial conditions (with --k-step)",
             "initial_state": "estimated x(0) on the estimation part; re-estimated by least "
             "squares for each horizon on the validation part",
         },

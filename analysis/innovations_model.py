@@ -84,6 +84,24 @@ class InnovationsModel:
         predicted, _ = scipy.signal.lfilter(from_u, denominator, u, zi=x0)
         return predicted + scipy.signal.lfilter(from_y, denominator, y)
 
+    def predict_k_steps(self, u: np.ndarray, y: np.ndarray, steps: int) -> np.ndarray:
+        """The k-step-ahead prediction ŷ(t | t-k), from zero initial conditions.
+
+        Ljung's form: ŷ = W_k G u + (1 - W_k) y with W_k = H̄_k H⁻¹, H = C/A the noise model and
+        H̄_k its first k impulse-response terms; so W_k G = H̄_k B / C and W_k = H̄_k A / C, two
+        filters with the denominator C.
+        """
+        if steps < 1:
+            raise ValueError(f"steps = {steps}: expected at least 1")
+        a_poly = np.concatenate([[1.0], self.a])
+        c_poly = np.concatenate([[1.0], self.c])
+        impulse = np.zeros(steps)
+        impulse[0] = 1.0
+        noise_head = scipy.signal.lfilter(c_poly, a_poly, impulse)  # h(0..k-1) of C/A
+        from_u = np.convolve(noise_head, np.concatenate([[0.0], self.b]))
+        from_y = np.convolve(noise_head, a_poly)
+        return scipy.signal.lfilter(from_u, c_poly, u) + y - scipy.signal.lfilter(from_y, c_poly, y)
+
     def simulate(self, u: np.ndarray, initial_state=None) -> np.ndarray:
         """The noise-free response to ``u`` (simulation, no measured outputs used)."""
         x0 = self.initial_state if initial_state is None else np.asarray(initial_state, float)

@@ -93,6 +93,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "default), its trend line, or nothing",
     )
     parser.add_argument(
+        "--k-step",
+        type=int,
+        default=None,
+        metavar="K",
+        help="also report the K-step-ahead prediction fit",
+    )
+    parser.add_argument(
         "--initial-state",
         choices=("estimate", "zero"),
         default="estimate",
@@ -205,6 +212,8 @@ def run_command(args: argparse.Namespace) -> int:
     if not args.ts > 0:
         raise RecordError(f"--ts {args.ts}: expected a positive sample period in s")
     orders = parse_orders(args.orders)
+    if args.k_step is not None and args.k_step < 1:
+        raise RecordError(f"--k-step {args.k_step}: expected a positive number of samples")
     u, y = read_signals(args)
     estimation_slice = parse_range(args.estimation, y.size, "--estimation")
     validation_slice = parse_range(args.validation, y.size, "--validation")
@@ -226,6 +235,7 @@ def run_command(args: argparse.Namespace) -> int:
         args.ts,
         estimate_initial_state=args.initial_state == "estimate",
         progress=report_progress if long_record else None,
+        k_step=args.k_step,
     )
     report["record"] = {
         "samples": int(y.size),

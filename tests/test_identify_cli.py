@@ -122,3 +122,24 @@ def test_identify_reads_a_maskless_recording(tmp_path, capsys):
     (model,) = report["models"]
     assert model["estimation"]["n"] + model["validation"]["n"] == report["record"]["samples"]
     assert report["record"]["samples"] == pytest.approx(60 / 0.048, abs=2)
+
+
+def test_k_step_fit_lies_between_one_step_and_simulation(tmp_path, capsys):
+    u, y, _, _ = simulate_record(2, "coloured", 4000)
+    u_path, y_path = write_record(tmp_path, u, y)
+    report = run_json(
+        capsys,
+        "--input",
+        u_path,
+        "--output",
+        y_path,
+        "--ts",
+        "1",
+        "--k-step",
+        "5",
+        "--out",
+        str(tmp_path / "k"),
+    )
+    part = report["models"][0]["validation"]
+    # Predicting further ahead uses less of the measured output.
+    assert part["fit_percent_sim"] < part["fit_percent_5step"] < part["fit_percent_1step"]

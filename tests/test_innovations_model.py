@@ -58,3 +58,32 @@ def test_initial_state_is_recovered_from_a_record(horizon):
     x0 = np.array([1.5, -0.7])
     y = MODEL.simulate(u, x0)  # noise-free: both horizons must find x0 exactly
     np.testing.assert_allclose(MODEL.initial_state_for(u, y, horizon), x0, atol=1e-9)
+
+
+@pytest.mark.parametrize("steps", [1, 3, 10])
+def test_k_step_prediction_matches_running_the_predictor_then_the_model(steps):
+    rng = np.random.default_rng(4)
+    u, y = rng.normal(size=200), rng.normal(size=200)
+    model = InnovationsModel(
+        a=MODEL.a, b=MODEL.b, k=MODEL.k, sample_period_s=1.0, initial_state=np.zeros(2)
+    )
+    m = model.state_space()
+    # Reference: the one-step predictor's state x(t-k+1 | t-k), then k-1 steps of the model with
+    # the known inputs and no innovations.
+    states = [np.zeros(2)]
+    for uk, yk in zip(u, y, strict=True):
+        x = states[-1]
+        states.append(m["A"] @ x + m["B"][:, 0] * uk + m["K"][:, 0] * (yk - x[0]))
+    reference = np.zeros(200)
+    for t in range(200):
+        origin = t - steps + 1  # x(origin | origin - 1) uses data up to t - k
+        if origin < 0:
+            continue
+        x = states[origin]
+        for j in range(origin, t):
+            x = m["A"] @ x + m["B"][:, 0] * u[j]
+        reference[t] = x[0]
+    predicted = model.predict_k_steps(u, y, steps)
+    np.testing.assert_allclose(predicted[steps:], reference[steps:], atol=1e-10)
+    if steps == 1:
+        np.testing.assert_allclose(predicted, model.predict(u, y), atol=1e-12)

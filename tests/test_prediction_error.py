@@ -94,3 +94,11 @@ def test_bad_orders_and_records_are_refused():
         estimate_pem(u[:50], y, 2, 1.0)
     with pytest.raises(ValueError, match="too few"):
         estimate_pem(u[:10], y[:10], 2, 1.0)
+
+
+def test_long_fits_report_progress():
+    u, y, _, _ = simulate_record(4, "coloured", 5000)
+    calls = []
+    estimate_pem(u, y, 4, 1.0, progress=lambda evaluations, cost: calls.append((evaluations, cost)))
+    assert calls and all(cost > 0 for _, cost in calls)
+    assert [e for e, _ in calls] == sorted(e for e, _ in calls)

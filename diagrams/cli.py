@@ -12,20 +12,14 @@ from maskless.diagrams import identify, simulate
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="maskless", description=__doc__)
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    simulate_parser = commands.add_parser(
-        "simulate",
-        help="simulate the closed loop, record it and summarise it",
-        description=simulate.__doc__,
-    )
-    simulate.add_arguments(simulate_parser)
-    simulate_parser.set_defaults(handler=simulate.run_command)
-    identify_parser = commands.add_parser(
-        "identify",
-        help="identify models from a recorded experiment and judge them",
-        description=identify.__doc__,
-    )
-    identify.add_arguments(identify_parser)
-    identify_parser.set_defaults(handler=identify.run_command)
+    # Each command module has a docstring (its --help), add_arguments and run_command.
+    for name, module, summary in (
+        ("simulate", simulate, "simulate the closed loop, record it and summarise it"),
+        ("identify", identify, "identify models from a recorded experiment and judge them"),
+    ):
+        command = commands.add_parser(name, help=summary, description=module.__doc__)
+        module.add_arguments(command)
+        command.set_defaults(handler=module.run_command)
     return parser
 
 

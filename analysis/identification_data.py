@@ -29,8 +29,13 @@ def read_csv_signal(path: str | Path, column: str | None = None) -> np.ndarray:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"record not found: {path}")
-    with open(path, newline="") as stream:
-        rows = list(csv.reader(stream))
+    try:
+        with open(path, newline="") as stream:
+            rows = list(csv.reader(stream))
+    except UnicodeDecodeError as error:
+        raise RecordError(
+            f"{path}: not a text file ({error.reason} at byte {error.start})"
+        ) from None
     first_data_line = 1
     index = 0
     if column is not None:
@@ -43,10 +48,21 @@ def read_csv_signal(path: str | Path, column: str | None = None) -> np.ndarray:
             index = int(column)
         else:
             raise RecordError(f"{path}: no column {column!r}; the header has {header}")
-    values = []
+    values, blank_line = [], None
     for line_number, row in enumerate(rows[first_data_line - 1 :], start=first_data_line):
         if not row or all(not cell.strip() for cell in row):
-            continue  # blank lines, e.g. a trailing newline
+            blank_line = blank_line or line_number  # allowed only at the end
+            continue
+        if blank_line is not None:
+            raise RecordError(
+                f"{path}:{blank_line}: blank line inside the record (it would shift every later "
+                "sample against the other signal)"
+            )
+        if column is None and len(row) > 1:
+            raise RecordError(
+                f"{path}:{line_number}: {len(row)} columns; choose one with --input-column or "
+                "--output-column"
+            )
         if index >= len(row):
             raise RecordError(f"{path}:{line_number}: has {len(row)} columns, no column {index}")
         text = row[index].strip()
@@ -72,9 +88,17 @@ def read_mcap_signal(path: str | Path, topic_and_field: str) -> tuple[np.ndarray
     topic, separator, field = topic_and_field.rpartition(":")
     if not separator or not topic or not field:
         raise RecordError(f"{path}: {topic_and_field!r} should be TOPIC:FIELD")
-    recording = read_recording(path)
+    try:
+        recording = read_recording(path)
+    except ValueError as error:
+        raise RecordError(str(error)) from None
     if topic not in recording.messages:
         raise RecordError(f"{path}: no topic {topic!r}; it has {sorted(recording.messages)}")
+    messages = recording.messages[topic]
+    if messages and field not in messages[0][1]:
+        raise RecordError(
+            f"{path}: topic {topic} has no field {field!r}; it has {sorted(messages[0][1])}"
+        )
     times, values = recording.topic_arrays(topic, field)
     values = np.asarray(values, dtype=float)
     bad = np.flatnonzero(~np.isfinite(values))
@@ -94,7 +118,7 @@ def parse_range(text: str, samples: int, what: str) -> slice:
         bounds = [float(start_text), float(stop_text)]
     except ValueError:
         raise RecordError(expected) from None
-    if not separator:
+    if not separator or not all(math.isfinite(b) for b in bounds):
         raise RecordError(expected)
     fractions = "." in text or max(bounds) <= 1
     start, stop = (round(b * samples) for b in bounds) if fractions else (int(b) for b in bounds)
@@ -113,12 +137,15 @@ class Detrended:
         u, y: the detrended input and output.
         input_offset, output_offset: what was subtracted: the mean, or the trend line's value at
             the first sample (for "linear"); 0 for "none".
+        input_slope, output_slope: the trend lines' slopes per sample ("linear"; else 0).
     """
 
     u: np.ndarray
     y: np.ndarray
     input_offset: float
     output_offset: float
+    input_slope: float = 0.0
+    output_slope: float = 0.0
 
 
 def detrend(u: np.ndarray, y: np.ndarray, mode: str) -> Detrended:
@@ -131,7 +158,13 @@ def detrend(u: np.ndarray, y: np.ndarray, mode: str) -> Detrended:
     if mode == "linear":
         u_detrended = scipy.signal.detrend(u, type="linear")
         y_detrended = scipy.signal.detrend(y, type="linear")
+        u_trend, y_trend = u - u_detrended, y - y_detrended
         return Detrended(
-            u_detrended, y_detrended, float(u[0] - u_detrended[0]), float(y[0] - y_detrended[0])
+            u_detrended,
+            y_detrended,
+            float(u_trend[0]),
+            float(y_trend[0]),
+            float(u_trend[1] - u_trend[0]),
+            float(y_trend[1] - y_trend[0]),
         )
     raise RecordError(f"--detrend {mode!r}: expected mean, linear or none")

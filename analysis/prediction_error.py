@@ -8,6 +8,7 @@ gets a large finite cost instead of overflowing, so the search turns back.
 """
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 import scipy.optimize
@@ -73,8 +74,8 @@ def estimate_pem(
     n = order
     if initial_model is None:
         arx = estimate_arx(u, y, n, sample_period_s)
-        # The noise model starts mid-way between ARX (C = 1) and output error (C = A): both are
-        # valid predictors, and the middle is closer to most real noise.
+        # The noise model starts half-way between ARX (C = 1) and output error (C = A), both valid
+        # predictors, so neither extreme's local minimum is favoured.
         x0_start = np.zeros(n)
         x0_start[0] = y[0]
         initial_model = InnovationsModel(
@@ -84,23 +85,47 @@ def estimate_pem(
             sample_period_s=sample_period_s,
             initial_state=x0_start,
         )
-    start = initial_model
-    parts = [start.a, start.b, start.k] if with_input else [start.a, start.k]
+    free = ["a", "b", "k"] if with_input else ["a", "k"]
+    start = initial_model if with_input else replace(initial_model, b=np.zeros(n))
     if estimate_initial_state:
-        parts.append(start.initial_state)
-    theta0 = np.concatenate(parts)
+        free.append("initial_state")
+    else:
+        start = replace(start, initial_state=np.zeros(n))
+    return _minimise_prediction_error(u, y, start, free, progress)
+
+
+def estimate_noise_model(
+    model: InnovationsModel,
+    u: np.ndarray,
+    y: np.ndarray,
+    estimate_initial_state: bool = True,
+    progress: Callable[[int, float], None] | None = None,
+) -> InnovationsModel:
+    """``model`` with its innovations gain K (and x(0) when asked) fitted by prediction error and
+    its dynamics A, B held: how a subspace fit gets its noise model."""
+    _check_record(u, y, model.order)
+    free = ["k", "initial_state"] if estimate_initial_state else ["k"]
+    start = replace(
+        model,
+        k=-0.5 * model.a,
+        initial_state=model.initial_state if estimate_initial_state else np.zeros(model.order),
+    )
+    return _minimise_prediction_error(u, y, start, free, progress)
+
+
+def _minimise_prediction_error(u, y, start: InnovationsModel, free: list[str], progress):
+    """Levenberg-Marquardt on the one-step errors over the named fields of ``start``."""
+    sizes = [getattr(start, name).size for name in free]
+    theta0 = np.concatenate([getattr(start, name) for name in free])
     scale = float(np.std(y)) or 1.0
     evaluations = [0]
 
     def unpack(theta):
-        a, rest = theta[:n], theta[n:]
-        if with_input:
-            b, rest = rest[:n], rest[n:]
-        else:
-            b = np.zeros(n)
-        k, rest = rest[:n], rest[n:]
-        x0 = rest[:n] if estimate_initial_state else np.zeros(n)
-        return InnovationsModel(a=a, b=b, k=k, sample_period_s=sample_period_s, initial_state=x0)
+        values, offset = {}, 0
+        for name, size in zip(free, sizes, strict=True):
+            values[name] = theta[offset : offset + size]
+            offset += size
+        return replace(start, **values)
 
     def residuals(theta):
         model = unpack(theta)
@@ -119,10 +144,18 @@ def estimate_pem(
     return unpack(solution.x)
 
 
-def parameter_count(model: InnovationsModel, estimated_initial_state: bool, with_input=True) -> int:
-    """d: the free parameters of the fit (a, b when there is input, k, and x(0) when estimated)."""
-    n = model.order
-    return n * (3 if with_input else 2) + (n if estimated_initial_state else 0)
+def estimate_ar(y: np.ndarray, order: int, sample_period_s: float) -> InnovationsModel:
+    """AR(n) by least squares, y(k) + a1 y(k-1) + ... = e(k): ARX without its input, the baseline
+    an ARX model must beat."""
+    return replace(estimate_arx(np.zeros_like(y), y, order, sample_period_s), b=np.zeros(order))
+
+
+def parameter_count(
+    order: int, *, with_input: bool, with_noise_model: bool, estimated_initial_state: bool
+) -> int:
+    """d: the free parameters of a fit, n each for a, b (with input), k (with a noise model; ARX
+    has none) and x(0) (when estimated)."""
+    return order * (1 + with_input + with_noise_model + estimated_initial_state)
 
 
 def _check_record(u, y, order):

@@ -12,11 +12,13 @@ reveal n states, short enough that the Hankel matrices stay 4·horizon rows high
 sample record costs one QR of a 100,000 x 40 matrix.
 """
 
+from collections.abc import Callable
+
 import numpy as np
 import scipy.linalg
-import scipy.optimize
 
 from maskless.analysis.innovations_model import InnovationsModel
+from maskless.analysis.prediction_error import estimate_noise_model
 
 
 def default_horizon(order: int) -> int:
@@ -37,6 +39,7 @@ def estimate_n4sid(
     sample_period_s: float,
     horizon: int | None = None,
     estimate_initial_state: bool = True,
+    progress: Callable[[int, float], None] | None = None,
 ) -> tuple[InnovationsModel, np.ndarray]:
     """A model of ``order`` by PO-MOESP.
 
@@ -97,31 +100,5 @@ def estimate_n4sid(
     deterministic = InnovationsModel(
         a=a, b=b, k=np.zeros(order), sample_period_s=sample_period_s, initial_state=x0
     )
-    return _with_innovations_gain(deterministic, u, y), singular_values
-
-
-def _with_innovations_gain(model: InnovationsModel, u, y) -> InnovationsModel:
-    """K (and the predictor's x(0)) by least squares on the one-step error, A and B held."""
-    n = model.order
-
-    def residuals(theta):
-        trial = InnovationsModel(
-            a=model.a,
-            b=model.b,
-            k=theta[:n],
-            sample_period_s=model.sample_period_s,
-            initial_state=theta[n:],
-        )
-        if np.any(np.abs(trial.predictor_poles()) >= 1.0):
-            return np.full(y.size, 1e3 * (np.std(y) or 1.0))
-        return y - trial.predict(u, y)
-
-    start = np.concatenate([-0.5 * model.a, model.initial_state])
-    solution = scipy.optimize.least_squares(residuals, start, method="lm", x_scale="jac")
-    return InnovationsModel(
-        a=model.a,
-        b=model.b,
-        k=solution.x[:n],
-        sample_period_s=model.sample_period_s,
-        initial_state=solution.x[n:],
-    )
+    model = estimate_noise_model(deterministic, u, y, estimate_initial_state, progress)
+    return model, singular_values

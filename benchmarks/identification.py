@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from maskless.analysis.fit_metrics import fit_percent
+from maskless.analysis.identification_data import parse_range
 from maskless.analysis.identification_report import Part, identify
 from maskless.analysis.innovations_model import InnovationsModel
 from maskless.analysis.prediction_error import estimate_pem
@@ -26,7 +27,12 @@ from maskless.analysis.subspace import estimate_n4sid
 
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))
-from identification_records import PAPER_DATA, TRUE_SYSTEMS, simulate_record  # noqa: E402
+from identification_records import (  # noqa: E402
+    PAPER_DATA,
+    TRUE_SYSTEMS,
+    load_paper_record,
+    simulate_record,
+)
 from machine import machine_description  # noqa: E402
 
 
@@ -59,13 +65,18 @@ def judge(estimate, order, samples, repeats):
 
 
 def paper_armax_stability():
-    if not (PAPER_DATA / "inputUGWN3.csv").is_file():
+    record = load_paper_record()
+    if record is None:
         return f"skipped: the authors' record is not at {PAPER_DATA}"
-    u, y = np.loadtxt(PAPER_DATA / "inputUGWN3.csv"), np.loadtxt(PAPER_DATA / "outputUGWN3.csv")
-    u, y = u - u.mean(), y - y.mean()
-    n = 11782
+    u, y = record
+    estimation = parse_range("0:0.6", y.size, "estimation")  # the authors' split
+    validation = slice(estimation.stop, y.size)
     report, _ = identify(
-        "armax", Part("estimation", u[:n], y[:n]), Part("validation", u[n:], y[n:]), [2, 4], 0.048
+        "armax",
+        Part("estimation", u[estimation], y[estimation]),
+        Part("validation", u[validation], y[validation]),
+        [2, 4],
+        0.048,
     )
     return [
         {"order": m["order"], "stable": m["stable"], "warned": "warning" in m}

@@ -9,6 +9,7 @@ on the estimation part and judges it on both parts. Writes DIR/report.json, one 
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -22,12 +23,18 @@ from maskless.analysis.identification_data import (
     read_csv_signal,
     read_mcap_signal,
 )
-from maskless.analysis.identification_report import METHODS, FittedModel, Part, identify
-from maskless.analysis.residual_analysis import plot_residual_correlations, residual_correlations
+from maskless.analysis.identification_plots import plot_compare, plot_residuals
+from maskless.analysis.identification_report import METHODS, Part, identify
+from maskless.analysis.model_file import model_file_contents
+from maskless.analysis.subspace import default_horizon
 from maskless.diagrams.background import BackgroundTask
 
 # Records at least this long report the optimiser's progress on stderr.
 _PROGRESS_MIN_SAMPLES = 50_000
+# A maskless recording's field names end in their SI unit.
+_FIELD_UNITS = {"_a": "A", "_m": "m"}
+# How far --ts may be from a recording's own sample period before it is refused.
+_TS_TOLERANCE = 0.01
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -105,8 +112,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="estimate",
         help="estimate x(0) with the model (default) or fix it at zero",
     )
-    parser.add_argument("--input-unit", default="mA", help="unit of the input (default mA)")
-    parser.add_argument("--output-unit", default="mm", help="unit of the output (default mm)")
+    parser.add_argument(
+        "--input-unit",
+        default=None,
+        help="unit of the input: m, mm, A or mA (default mA for CSV, the field's unit for MCAP)",
+    )
+    parser.add_argument(
+        "--output-unit",
+        default=None,
+        help="unit of the output (default mm for CSV, the field's unit for MCAP)",
+    )
     parser.add_argument(
         "--out",
         type=Path,
@@ -117,23 +132,40 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print report.json to stdout")
 
 
-def read_signals(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray]:
-    """The input and output records, refused with the file named when they cannot be used."""
+def _field_unit(topic_and_field: str) -> str:
+    for suffix, unit in _FIELD_UNITS.items():
+        if topic_and_field.endswith(suffix):
+            return unit
+    return "unknown"
+
+
+def read_signals(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray, tuple[str, str]]:
+    """The input and output records and their units, refused with the file named when they
+    cannot be used."""
     output_path = args.output or args.input
     if args.input.suffix == ".mcap" or output_path.suffix == ".mcap":
-        input_times, u = read_mcap_signal(
-            args.input, args.input_column or "/controller/command:current_a"
-        )
-        output_times, y = read_mcap_signal(
-            output_path, args.output_column or "/fusion/estimate:position_m"
-        )
-        # Keep the samples both topics have (a maskless recording logs both every period).
+        input_field = args.input_column or "/controller/command:current_a"
+        output_field = args.output_column or "/fusion/estimate:position_m"
+        input_times, u = read_mcap_signal(args.input, input_field)
+        output_times, y = read_mcap_signal(output_path, output_field)
         common, input_index, output_index = np.intersect1d(
             input_times, output_times, return_indices=True
         )
-        if common.size == 0:
-            raise RecordError(f"{args.input} and {output_path}: no common timestamps")
-        return u[input_index], y[output_index]
+        if common.size < 2:
+            raise RecordError(f"{args.input} and {output_path}: fewer than 2 common timestamps")
+        steps_s = np.diff(common) * 1e-9
+        period_s = float(np.median(steps_s))
+        if abs(period_s - args.ts) > _TS_TOLERANCE * period_s:
+            raise RecordError(f"--ts {args.ts}: the recording's samples are {period_s:.6g} s apart")
+        if np.any(np.abs(steps_s - period_s) > 0.5 * period_s):
+            gap = int(np.argmax(np.abs(steps_s - period_s) > 0.5 * period_s))
+            raise RecordError(
+                f"{args.input}: {input_field} and {output_field} share no samples between "
+                f"{common[gap] * 1e-9:.3f} s and {common[gap + 1] * 1e-9:.3f} s; a record with "
+                "gaps cannot be identified as one sequence"
+            )
+        units = (_field_unit(input_field), _field_unit(output_field))
+        return u[input_index], y[output_index], units
     if args.output is None:
         raise RecordError("--output is required when --input is a CSV file")
     u = read_csv_signal(args.input, args.input_column)
@@ -143,7 +175,7 @@ def read_signals(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray]:
             f"{args.input} has {u.size} values but {args.output} has {y.size}; expected one "
             "output per input"
         )
-    return u, y
+    return u, y, ("mA", "mm")
 
 
 def parse_orders(text: str) -> list[int]:
@@ -156,72 +188,71 @@ def parse_orders(text: str) -> list[int]:
     return orders
 
 
-def model_file(fitted: FittedModel, args, offsets) -> dict:
-    """A model as the YAML a later `maskless simulate --plant identified:FILE` and the LQG design
-    read: discrete matrices, Ts, the offsets removed before fitting and the units."""
-    matrices = fitted.model.state_space()
-    return {
-        "method": fitted.method,
-        "order": fitted.model.order,
-        "sample_period_s": args.ts,
-        **{name: matrix.tolist() for name, matrix in matrices.items()},
-        "input": {"unit": args.input_unit, "offset": offsets.input_offset},
-        "output": {"unit": args.output_unit, "offset": offsets.output_offset},
-        "detrend": args.detrend,
-        "stable": fitted.model.is_stable(),
-    }
+def minimum_samples(orders: list[int], method: str) -> int:
+    """The fewest samples a part needs for the largest order (N4SID's Hankel matrices need more)."""
+    largest = max(orders)
+    return 12 * default_horizon(largest) if method == "n4sid" else 10 * largest
 
 
-def plot_compare(path: Path, fitted: FittedModel, parts: list[Part], args) -> None:
-    """Measured output against the one-step prediction and the simulation, on each part."""
-    from matplotlib.figure import Figure  # a bare Figure: no GUI backend, no pyplot
+def write_outputs(fitted_models, parts, report, offsets, units, args) -> None:
+    """Model files and report.json here; the plots on the second core meanwhile."""
+    args.out.mkdir(parents=True, exist_ok=True)
 
-    model = fitted.model
-    figure = Figure(figsize=(11, 3.2 * len(parts)), layout="constrained")
-    axes = figure.subplots(len(parts), 1, squeeze=False)[:, 0]
-    for axis, part in zip(axes, parts, strict=True):
-        estimated = fitted.estimated_initial_state
-        x0_step = model.initial_state_for(part.u, part.y, "one_step") if estimated else None
-        x0_sim = model.initial_state_for(part.u, part.y, "simulation") if estimated else None
-        time_s = np.arange(part.y.size) * args.ts
-        axis.plot(time_s, part.y, color="black", lw=0.8, label="measured")
-        axis.plot(time_s, model.predict(part.u, part.y, x0_step), lw=0.7, label="1-step prediction")
-        axis.plot(time_s, model.simulate(part.u, x0_sim), lw=1.0, label="simulation")
-        axis.set_title(f"{fitted.method} order {model.order}: {part.name} part")
-        axis.set_ylabel(f"output - offset ({args.output_unit})")
-        axis.legend(loc="upper right", fontsize=8)
-    axes[-1].set_xlabel("time from the part's start (s)")
-    figure.savefig(path, dpi=100)
+    def plots():
+        for fitted in fitted_models:
+            stem = f"{fitted.method}_order{fitted.model.order}"
+            plot_compare(args.out / f"compare_{stem}.png", fitted, parts, args.ts, units[1])
+            plot_residuals(args.out / f"residuals_{stem}.png", fitted, parts)
 
-
-def write_plots(fitted_models, parts, args) -> None:
-    for fitted in fitted_models:
-        stem = f"{fitted.method}_order{fitted.model.order}"
-        plot_compare(args.out / f"compare_{stem}.png", fitted, parts, args)
-        estimation = parts[0]
-        residuals = estimation.y - fitted.model.predict(estimation.u, estimation.y)
-        plot_residual_correlations(
-            args.out / f"residuals_{stem}.png",
-            residual_correlations(residuals, estimation.u),
-            f"{fitted.method} order {fitted.model.order}, estimation part",
+    plotting = BackgroundTask(f"plotting into {args.out}", plots)
+    linear = args.detrend == "linear"
+    for fitted, entry in zip(fitted_models, report["models"], strict=True):
+        contents = model_file_contents(
+            fitted,
+            sample_period_s=args.ts,
+            input_unit=units[0],
+            output_unit=units[1],
+            input_offset=offsets.input_offset,
+            output_offset=offsets.output_offset,
+            detrend=args.detrend,
+            trend_slopes_per_sample=(offsets.input_slope, offsets.output_slope) if linear else None,
+            innovations_variance=entry["estimation"]["mse"],
+            verdict=entry["verdict"],
         )
+        path = args.out / f"model_{fitted.method}_order{fitted.model.order}.yaml"
+        path.write_text(yaml.safe_dump(contents, sort_keys=False))
+    (args.out / "report.json").write_text(json.dumps(report, indent=1))
+    plotting.wait()
 
 
 def run_command(args: argparse.Namespace) -> int:
     """`maskless identify`: returns the process exit code."""
-    if not args.ts > 0:
-        raise RecordError(f"--ts {args.ts}: expected a positive sample period in s")
+    if not (math.isfinite(args.ts) and args.ts > 0):
+        raise RecordError(f"--ts {args.ts}: expected a positive, finite sample period in s")
     orders = parse_orders(args.orders)
-    if args.k_step is not None and args.k_step < 1:
-        raise RecordError(f"--k-step {args.k_step}: expected a positive number of samples")
-    u, y = read_signals(args)
+    u, y, units = read_signals(args)
+    units = (args.input_unit or units[0], args.output_unit or units[1])
+    if np.ptp(u) == 0:
+        raise RecordError(f"{args.input}: the input is constant, so it explains nothing to fit")
     estimation_slice = parse_range(args.estimation, y.size, "--estimation")
     validation_slice = parse_range(args.validation, y.size, "--validation")
+    needed = minimum_samples(orders, args.method)
+    for flag, part in (("--estimation", estimation_slice), ("--validation", validation_slice)):
+        if part.stop - part.start < needed:
+            raise RecordError(
+                f"{flag} selects {part.stop - part.start} samples; order {max(orders)} with "
+                f"{args.method} needs at least {needed}"
+            )
+        if args.k_step is not None and args.k_step >= part.stop - part.start:
+            raise RecordError(f"--k-step {args.k_step}: longer than the {flag} part")
     offsets = detrend(u, y, args.detrend)
     parts = [
         Part("estimation", offsets.u[estimation_slice], offsets.y[estimation_slice]),
         Part("validation", offsets.u[validation_slice], offsets.y[validation_slice]),
     ]
+    overlap = max(estimation_slice.start, validation_slice.start) < min(
+        estimation_slice.stop, validation_slice.stop
+    )
 
     def report_progress(evaluations, cost):
         print(f"fitting: {evaluations} evaluations, cost {cost:.6g}", file=sys.stderr, flush=True)
@@ -236,6 +267,7 @@ def run_command(args: argparse.Namespace) -> int:
         estimate_initial_state=args.initial_state == "estimate",
         progress=report_progress if long_record else None,
         k_step=args.k_step,
+        overlap=overlap,
     )
     report["record"] = {
         "samples": int(y.size),
@@ -244,18 +276,10 @@ def run_command(args: argparse.Namespace) -> int:
         "detrend": args.detrend,
         "input_offset": offsets.input_offset,
         "output_offset": offsets.output_offset,
+        "units": {"input": units[0], "output": units[1]},
     }
-    args.out.mkdir(parents=True, exist_ok=True)
-    plotting = BackgroundTask(f"plotting into {args.out}", write_plots, fitted_models, parts, args)
-    for fitted in fitted_models:
-        path = args.out / f"model_{fitted.method}_order{fitted.model.order}.yaml"
-        path.write_text(yaml.safe_dump(model_file(fitted, args, offsets), sort_keys=False))
-    (args.out / "report.json").write_text(json.dumps(report, indent=1))
-    plotting.wait()
-    if args.json:
-        print(json.dumps(report))
-    else:
-        print(format_report(report, args.out))
+    write_outputs(fitted_models, parts, report, offsets, units, args)
+    print(json.dumps(report) if args.json else format_report(report, args.out))
     return 0
 
 
@@ -263,29 +287,34 @@ def format_report(report: dict, out: Path) -> str:
     """The report as lines a person reads."""
     lines = []
     for model in report["models"]:
-        e, v = model["estimation"], model["validation"]
         stability = "stable" if model["stable"] else "UNSTABLE"
         lines.append(
             f"{model['method']} order {model['order']} ({model['parameters']} parameters, "
             f"initial state {model['initial_state']}, {stability})"
         )
-        for name, part in (("estimation", e), ("validation", v)):
+        for name in ("estimation", "validation"):
+            part = model[name]
+            k_steps = [key for key in part if key.endswith("step") and key != "fit_percent_1step"]
+            extra = "".join(
+                f", {key.removeprefix('fit_percent_')} {part[key]:.3f} %" for key in k_steps
+            )
             lines.append(
-                f"  {name:<10} fit 1-step {part['fit_percent_1step']:.6f} %, "
+                f"  {name:<10} fit 1-step {part['fit_percent_1step']:.6f} %{extra}, "
                 f"sim {part['fit_percent_sim']:.2f} %, MSE {part['mse']:.6g}, "
                 f"FPE {part['fpe']:.6g}, n {part['n']}"
             )
-        beaten = [name for name, beats in model["beats_on_validation"].items() if not beats]
-        if beaten:
-            lines.append(f"  does not beat on validation: {', '.join(beaten)}")
+        margins = model["margins_on_validation"]
+        lines.append(
+            "  margins on validation (fit points): "
+            + ", ".join(f"{name} {value:+.3f}" for name, value in margins.items())
+        )
         if "warning" in model:
             lines.append(f"  WARNING: {model['warning']}")
     naive = report["baselines"]["naive_last_value"]
     lines.append(
         "baseline 'next value = last value': fit 1-step "
-        + ", ".join(
-            f"{name} {figures['fit_percent_1step']:.3f} %" for name, figures in naive.items()
-        )
+        + ", ".join(f"{name} {part['fit_percent_1step']:.3f} %" for name, part in naive.items())
     )
+    lines += [f"WARNING: {warning}" for warning in report["warnings"]]
     lines += ["", report["verdict"], "", f"report, models and plots in {out}"]
     return "\n".join(lines)

@@ -5,6 +5,7 @@ import pytest
 import yaml
 from identification_records import PAPER_DATA, paper_record, simulate_record
 
+from maskless.analysis.model_file import load_identified_model
 from maskless.diagrams.cli import main
 
 
@@ -122,6 +123,15 @@ def test_identify_reads_a_maskless_recording(tmp_path, capsys):
     (model,) = report["models"]
     assert model["estimation"]["n"] + model["validation"]["n"] == report["record"]["samples"]
     assert report["record"]["samples"] == pytest.approx(60 / 0.048, abs=2)
+    # The recording's fields are in A and m; the model file says so and loads into SI as is.
+    saved = yaml.safe_load((tmp_path / "id" / "model_pem_order2.yaml").read_text())
+    assert (saved["input"]["unit"], saved["output"]["unit"]) == ("A", "m")
+    loaded = load_identified_model(tmp_path / "id" / "model_pem_order2.yaml")
+    np.testing.assert_allclose(loaded.B, np.array(saved["B"]))
+    assert loaded.operating_input_a == pytest.approx(saved["input"]["offset"])
+    # A --ts that is not the recording's sample period is refused.
+    assert main(["identify", "--input", str(out / "run.mcap"), "--ts", "0.1"]) == 2
+    assert "0.048 s apart" in capsys.readouterr().err
 
 
 def test_k_step_fit_lies_between_one_step_and_simulation(tmp_path, capsys):
@@ -143,3 +153,153 @@ def test_k_step_fit_lies_between_one_step_and_simulation(tmp_path, capsys):
     part = report["models"][0]["validation"]
     # Predicting further ahead uses less of the measured output.
     assert part["fit_percent_sim"] < part["fit_percent_5step"] < part["fit_percent_1step"]
+
+
+def record_with_drift(tmp_path, seed=3, samples=4000, drift_std=1.0):
+    """Known dynamics plus a strong random walk: the input explains only part of the output."""
+    import scipy.signal
+
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(samples)
+    drift = scipy.signal.lfilter([1.0], [1, -0.99], drift_std * rng.standard_normal(samples))
+    y = scipy.signal.lfilter([0, 0.5, 0.3], np.poly([0.9, 0.7]), u) + drift
+    return write_record(tmp_path, u, y)
+
+
+def test_verdict_says_part_when_drift_hides_the_dynamics(tmp_path, capsys):
+    u_path, y_path = record_with_drift(tmp_path)
+    report = run_json(
+        capsys, "--input", u_path, "--output", y_path, "--ts", "1", "--out", str(tmp_path / "o")
+    )
+    assert report["verdict"].startswith("The input explains part of the output")
+
+
+@pytest.mark.parametrize("method, parameters", [("arx", 4), ("n4sid", 8), ("armax", 8)])
+def test_other_methods_through_the_command(tmp_path, capsys, method, parameters):
+    u, y, _, _ = simulate_record(2, "white", 4000)
+    u_path, y_path = write_record(tmp_path, u, y)
+    report = run_json(
+        capsys,
+        "--input",
+        u_path,
+        "--output",
+        y_path,
+        "--ts",
+        "1",
+        "--method",
+        method,
+        "--out",
+        str(tmp_path / method),
+    )
+    (model,) = report["models"]
+    assert model["parameters"] == parameters  # ARX(2,2,1): 2n; the others 3n + n initial states
+    np.testing.assert_allclose(np.sort([p[0] for p in model["poles"]]), [0.7, 0.9], atol=0.02)
+    if method == "n4sid":
+        assert model["horizon"] == 10 and len(model["singular_values"]) == 6
+
+
+def test_zero_initial_state_is_used_everywhere(tmp_path, capsys):
+    u, y, _, _ = simulate_record(2, "white", 4000)
+    u_path, y_path = write_record(tmp_path, u, y)
+    report = run_json(
+        capsys,
+        "--input",
+        u_path,
+        "--output",
+        y_path,
+        "--ts",
+        "1",
+        "--method",
+        "n4sid",
+        "--initial-state",
+        "zero",
+        "--out",
+        str(tmp_path / "z"),
+    )
+    assert report["models"][0]["initial_state"] == "zero"
+    assert report["horizons"]["initial_state"] == "zero"
+    assert report["models"][0]["parameters"] == 6
+
+
+def test_unstable_model_is_flagged_and_judged_useless(tmp_path, capsys):
+    paper_record()
+    report = run_json(
+        capsys,
+        "--input",
+        str(PAPER_DATA / "inputUGWN3.csv"),
+        "--output",
+        str(PAPER_DATA / "outputUGWN3.csv"),
+        "--ts",
+        "0.048",
+        "--estimation",
+        "0:1000",
+        "--validation",
+        "0.6:1",
+        "--out",
+        str(tmp_path / "u"),
+    )
+    (model,) = report["models"]
+    assert not model["stable"] and "unstable" in model["warning"]
+    assert report["verdict"].startswith("The input explains essentially nothing")
+    assert "UNSTABLE" in report["verdict"]
+
+
+def test_overlapping_validation_is_called_out(tmp_path, capsys):
+    u, y, _, _ = simulate_record(2, "white", 4000)
+    u_path, y_path = write_record(tmp_path, u, y)
+    report = run_json(
+        capsys,
+        "--input",
+        u_path,
+        "--output",
+        y_path,
+        "--ts",
+        "1",
+        "--estimation",
+        "0:1",
+        "--validation",
+        "0:1",
+        "--out",
+        str(tmp_path / "ov"),
+    )
+    assert "overlaps" in report["warnings"][0] and "not a holdout" in report["verdict"]
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [("0,80\n0.048,81\n", "2 columns; choose one"), ("1\n2\n\n3\n", "blank line inside")],
+)
+def test_ambiguous_csv_is_refused(tmp_path, capsys, text, message):
+    (tmp_path / "u.csv").write_text(text)
+    (tmp_path / "y.csv").write_text("1\n2\n3\n")
+    assert (
+        main(
+            [
+                "identify",
+                "--input",
+                str(tmp_path / "u.csv"),
+                "--output",
+                str(tmp_path / "y.csv"),
+                "--ts",
+                "1",
+            ]
+        )
+        == 2
+    )
+    assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--ts", "inf"], "--ts inf"),
+        (["--ts", "1", "--estimation", "0:nan"], "--estimation"),
+        (["--ts", "1", "--validation", "0.999:1"], "--validation selects"),
+        (["--ts", "1", "--k-step", "100000"], "--k-step"),
+    ],
+)
+def test_bad_flags_are_refused_naming_the_flag(tmp_path, capsys, extra, message):
+    u, y, _, _ = simulate_record(2, "white", 4000)
+    u_path, y_path = write_record(tmp_path, u, y)
+    assert main(["identify", "--input", u_path, "--output", y_path, *extra]) == 2
+    assert message in capsys.readouterr().err

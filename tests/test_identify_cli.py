@@ -15,6 +15,10 @@ def write_record(tmp_path, u, y):
     return str(tmp_path / "u.csv"), str(tmp_path / "y.csv")
 
 
+def record_flags(u_path, y_path, ts):
+    return ["--input", u_path, "--output", y_path, "--ts", ts]
+
+
 def run_json(capsys, *args):
     assert main(["identify", *args, "--json"]) == 0
     return json.loads(capsys.readouterr().out)
@@ -26,12 +30,7 @@ def test_report_files_and_json_on_a_simulated_record(tmp_path, capsys):
     out = tmp_path / "out"
     report = run_json(
         capsys,
-        "--input",
-        u_path,
-        "--output",
-        y_path,
-        "--ts",
-        "0.048",
+        *record_flags(u_path, y_path, "0.048"),
         "--orders",
         "2",
         "--method",
@@ -139,12 +138,7 @@ def test_k_step_fit_lies_between_one_step_and_simulation(tmp_path, capsys):
     u_path, y_path = write_record(tmp_path, u, y)
     report = run_json(
         capsys,
-        "--input",
-        u_path,
-        "--output",
-        y_path,
-        "--ts",
-        "1",
+        *record_flags(u_path, y_path, "1"),
         "--k-step",
         "5",
         "--out",
@@ -168,9 +162,7 @@ def record_with_drift(tmp_path, seed=3, samples=4000, drift_std=1.0):
 
 def test_verdict_says_part_when_drift_hides_the_dynamics(tmp_path, capsys):
     u_path, y_path = record_with_drift(tmp_path)
-    report = run_json(
-        capsys, "--input", u_path, "--output", y_path, "--ts", "1", "--out", str(tmp_path / "o")
-    )
+    report = run_json(capsys, *record_flags(u_path, y_path, "1"), "--out", str(tmp_path / "o"))
     assert report["verdict"].startswith("The input explains part of the output")
 
 
@@ -180,12 +172,7 @@ def test_other_methods_through_the_command(tmp_path, capsys, method, parameters)
     u_path, y_path = write_record(tmp_path, u, y)
     report = run_json(
         capsys,
-        "--input",
-        u_path,
-        "--output",
-        y_path,
-        "--ts",
-        "1",
+        *record_flags(u_path, y_path, "1"),
         "--method",
         method,
         "--out",
@@ -203,12 +190,7 @@ def test_zero_initial_state_is_used_everywhere(tmp_path, capsys):
     u_path, y_path = write_record(tmp_path, u, y)
     report = run_json(
         capsys,
-        "--input",
-        u_path,
-        "--output",
-        y_path,
-        "--ts",
-        "1",
+        *record_flags(u_path, y_path, "1"),
         "--method",
         "n4sid",
         "--initial-state",
@@ -249,12 +231,7 @@ def test_overlapping_validation_is_called_out(tmp_path, capsys):
     u_path, y_path = write_record(tmp_path, u, y)
     report = run_json(
         capsys,
-        "--input",
-        u_path,
-        "--output",
-        y_path,
-        "--ts",
-        "1",
+        *record_flags(u_path, y_path, "1"),
         "--estimation",
         "0:1",
         "--validation",

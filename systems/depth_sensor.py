@@ -24,15 +24,15 @@ from pydrake.symbolic import (
     logical_and,
     sqrt,
 )
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import RandomSource
 
 from maskless.assets.loader import UNSET, ConfigError
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
-    as_diagram,
     building_expressions,
+    diagram_form,
 )
 from maskless.systems.units import mm_to_m
 
@@ -153,11 +153,6 @@ def validate_sensor_config(name: str, config: DepthSensorConfig) -> None:
             fail("resolution_m", "a positive step")
 
 
-def make_depth_sensor(name: str, config: DepthSensorConfig) -> Diagram:
-    """The camera model as a Diagram (see ``add_depth_sensor``)."""
-    return as_diagram(name, lambda builder: add_depth_sensor(builder, name, config))
-
-
 def add_depth_sensor(builder: DiagramBuilder, name: str, config: DepthSensorConfig) -> PortMap:
     """Adds a camera model to ``builder``: ``kinect_v1`` for a KinectV1Config, ``kinect_v2`` for
     a KinectV2Config.
@@ -247,3 +242,6 @@ def _add_frame_dynamics(
         time=t,
         time_period=period_s,
     )
+
+
+make_depth_sensor = diagram_form(add_depth_sensor)

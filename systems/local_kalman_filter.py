@@ -24,14 +24,14 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.math import DiscreteAlgebraicRiccatiEquation
 from pydrake.symbolic import Expression, MakeVectorVariable, Variable, if_then_else, logical_and
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.framework import DiagramBuilder
 
 from maskless.assets.loader import UNSET, ConfigError
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
-    as_diagram,
     building_expressions,
+    diagram_form,
 )
 
 MEASUREMENT_MATRIX = np.array([[1.0, 0.0]])  # H in Eq. 7
@@ -90,11 +90,6 @@ def steady_state_covariances(dt, acceleration_variance, measurement_variance):
     prior = DiscreteAlgebraicRiccatiEquation(F.T, MEASUREMENT_MATRIX.T, Q, R)
     _, posterior = update(np.zeros(2), prior, 0.0, measurement_variance)
     return prior, posterior
-
-
-def make_local_kalman_filter(name: str, **kwargs) -> Diagram:
-    """The local filter as a Diagram; keyword arguments as for ``add_local_kalman_filter``."""
-    return as_diagram(name, lambda builder: add_local_kalman_filter(builder, name, **kwargs))
 
 
 @building_expressions
@@ -191,3 +186,6 @@ _UPPER = [(0, 0), (0, 1), (1, 1)]
 
 def _is_symbolic(value) -> bool:
     return isinstance(value, Expression | Variable)
+
+
+make_local_kalman_filter = diagram_form(add_local_kalman_filter)

@@ -19,13 +19,13 @@ import numpy as np
 from pydrake.symbolic import MakeVectorVariable, Variable
 from pydrake.systems.controllers import DiscreteTimeLinearQuadraticRegulator
 from pydrake.systems.estimators import DiscreteTimeSteadyStateKalmanFilter
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.framework import DiagramBuilder
 
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
-    as_diagram,
     building_expressions,
+    diagram_form,
 )
 from maskless.systems.paper_parameters import IdentifiedModel, LqgWeights
 from maskless.systems.valve_map import effective_valve_current
@@ -79,22 +79,6 @@ def closed_loop_poles(model: IdentifiedModel, design: LqgDesign) -> dict[str, np
         "regulator": np.linalg.eigvals(model.A - model.B @ design.K),
         "estimator": np.linalg.eigvals(model.A - design.L @ model.C),
     }
-
-
-def make_lqg_controller(
-    model: IdentifiedModel,
-    design: LqgDesign,
-    camera_height_m: float,
-    valve_currents_a: tuple[float, float],
-    name: str = "lqg_controller",
-) -> Diagram:
-    """The LQG controller as a Diagram (see ``add_lqg_controller``)."""
-    return as_diagram(
-        name,
-        lambda builder: add_lqg_controller(
-            builder, model, design, camera_height_m, valve_currents_a, name
-        ),
-    )
 
 
 @building_expressions
@@ -165,3 +149,6 @@ def add_lqg_controller(
         dynamics=[*next_x_hat, model_output(reference_height)],
         time_period=model.sample_period_s,
     )
+
+
+make_lqg_controller = diagram_form(add_lqg_controller)

@@ -8,7 +8,7 @@ helpers here split that vector into named ports.
 
 Every maskless component comes in two forms built by one function: ``add_*(builder, ...)`` adds its
 systems to a builder and returns a ``PortMap`` (named port handles), and ``make_*(...)`` packages
-the same systems as a Diagram with those port names (``as_diagram``). The closed loop uses the first
+the same systems as a Diagram with those port names (``diagram_form``). The closed loop uses the first
 form: wrapping each system in a Diagram of its own nearly doubles the cost of a simulation step
 (benchmarks/system_overhead.py), and the loop's speed target needs the flat form.
 
@@ -18,6 +18,7 @@ where it should, with no set-up call a user could forget.
 """
 
 import functools
+import inspect
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -51,6 +52,21 @@ def as_diagram(name: str, add: Callable[[DiagramBuilder], PortMap]) -> Diagram:
     diagram = builder.Build()
     diagram.set_name(name)
     return diagram
+
+
+def diagram_form(add: Callable[..., PortMap]) -> Callable[..., Diagram]:
+    """The ``make_*`` form of an ``add_*`` component: it takes the same arguments except the
+    builder and returns a Diagram named by the component's ``name`` argument."""
+    signature = inspect.signature(add)
+
+    def make(*args, **kwargs) -> Diagram:
+        bound = signature.bind(None, *args, **kwargs)
+        bound.apply_defaults()
+        return as_diagram(bound.arguments["name"], lambda builder: add(builder, *args, **kwargs))
+
+    make.__name__ = add.__name__.replace("add_", "make_", 1)
+    make.__doc__ = f"``{add.__name__}`` packaged as a named Diagram (same arguments, no builder)."
+    return make
 
 
 def building_expressions(function):

@@ -10,37 +10,16 @@ With B of order 1e-7 m/A this plant barely moves: that is the paper's own model,
 """
 
 from pydrake.symbolic import MakeVectorVariable, Variable
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.framework import DiagramBuilder
 
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
-    as_diagram,
     building_expressions,
+    diagram_form,
 )
 from maskless.systems.paper_parameters import IdentifiedModel
 from maskless.systems.valve_map import effective_valve_current
-
-
-def make_paper_plant(
-    model: IdentifiedModel,
-    camera_height_m: float,
-    valve_starting_current_a: float,
-    valve_saturation_current_a: float,
-    name: str = "paper_plant",
-) -> Diagram:
-    """The paper plant as a Diagram (see ``add_paper_plant``)."""
-    return as_diagram(
-        name,
-        lambda builder: add_paper_plant(
-            builder,
-            model,
-            camera_height_m,
-            valve_starting_current_a,
-            valve_saturation_current_a,
-            name,
-        ),
-    )
 
 
 @building_expressions
@@ -93,3 +72,6 @@ def add_paper_plant(
 def operating_head_height_m(model: IdentifiedModel, camera_height_m: float) -> float:
     """Head height above the table at the model's operating point (m)."""
     return camera_height_m - model.operating_output_m
+
+
+make_paper_plant = diagram_form(add_paper_plant)

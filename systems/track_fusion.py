@@ -9,13 +9,13 @@ from collections.abc import Sequence
 
 import numpy as np
 from pydrake.symbolic import MakeVectorVariable
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.framework import DiagramBuilder
 
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
-    as_diagram,
     building_expressions,
+    diagram_form,
 )
 
 
@@ -50,11 +50,6 @@ def fuse_tracks(states: Sequence[np.ndarray], covariances: Sequence[np.ndarray])
         fused_state = P @ inverse_sum @ fused_state + fused_covariance @ inverse_sum @ x
         fused_covariance = fused_covariance @ inverse_sum @ P
     return fused_state, fused_covariance
-
-
-def make_track_fusion(track_names: Sequence[str], name: str = "fusion") -> Diagram:
-    """The fusion site as a Diagram (see ``add_track_fusion``)."""
-    return as_diagram(name, lambda builder: add_track_fusion(builder, track_names, name))
 
 
 @building_expressions
@@ -103,3 +98,6 @@ def add_track_fusion(
             ("covariance", list(fused_covariance.flatten())),
         ],
     )
+
+
+make_track_fusion = diagram_form(add_track_fusion)

@@ -8,9 +8,9 @@ helpers here split that vector into named ports.
 
 Every maskless component comes in two forms built by one function: ``add_*(builder, ...)`` adds its
 systems to a builder and returns a ``PortMap`` (named port handles), and ``make_*(...)`` packages
-the same systems as a Diagram with those port names (``diagram_form``). The closed loop uses the first
-form: wrapping each system in a Diagram of its own nearly doubles the cost of a simulation step
-(benchmarks/system_overhead.py), and the loop's speed target needs the flat form.
+the same systems as a Diagram with those port names (``diagram_form``). The closed loop uses the
+first form: wrapping each system in a Diagram of its own nearly doubles the cost of a simulation
+step (benchmarks/system_overhead.py), and the loop's speed target needs the flat form.
 
 The default state of a SymbolicVectorSystem is zero and cannot be changed from Python, so the
 components store their state relative to the configured initial value: a fresh Context then starts

@@ -18,8 +18,8 @@ if TYPE_CHECKING:
 def summarize(run: "SimulationRun") -> dict:
     """The run's figures as a JSON-ready dict (mm, mA and s, what people read)."""
     config, loop, s = run.config, run.closed_loop, run.signals
-    times = s["head_height"].times_s
-    head, reference = s["head_height"].values[0], s["reference"].values[0]
+    times = s["head_height_m"].times_s
+    head, reference = s["head_height_m"].values[0], s["reference_head_height_m"].values[0]
     steps = [t for t in config.reference.step_times_s if t <= times[-1]]
     metrics = tracking_metrics(
         times,
@@ -54,7 +54,7 @@ def summarize(run: "SimulationRun") -> dict:
         for current in (0.0, paper.valve_saturation_current_ma)
     ]
     poles = closed_loop_poles(model, design)
-    command = s["command"].values[0]
+    command = s["valve_current_a"].values[0]
 
     def tracking_mm(value):
         return None if value is None else m_to_mm(value)

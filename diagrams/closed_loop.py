@@ -35,8 +35,8 @@ class ClosedLoop:
 
     Attributes:
         diagram: the Diagram, named "paper_closed_loop".
-        loggers: signal name -> (VectorLogSink, the rows of its log that hold the signal); empty
-            when built without recording.
+        loggers: exported output name -> (VectorLogSink, the rows of its log that hold that
+            output); empty when built without recording.
         model: the plant model the controller was designed on.
         design: the controller's gains.
         start_height_m: head height above the table at t = 0 (m).
@@ -163,20 +163,17 @@ def build_paper_closed_loop(config: SimulationConfig, record: bool = True) -> Cl
 
     loggers = {}
     if record:
-        period_s = model.sample_period_s
-        logged = {
-            "reference": (exported["reference_head_height_m"], period_s),
-            "head_height": (exported["head_height_m"], period_s),
-            "command": (exported["valve_current_a"], period_s),
-            "fusion.estimated_state": (exported["fusion.estimated_state"], period_s),
-            "fusion.covariance": (exported["fusion.covariance"], period_s),
+        # Every exported output is logged: camera frames at their frame period, the rest at the
+        # controller's, so estimates and command share timestamps.
+        frame_periods_s = {
+            f"{name}.{port}": 1.0 / config.sensors()[name].frame_rate_hz
+            for name in sensor_names
+            for port in ("distance_m", "valid")
         }
-        for name in sensor_names:
-            frame_period_s = 1.0 / config.sensors()[name].frame_rate_hz
-            for port in ("distance_m", "valid"):
-                logged[f"{name}.{port}"] = (exported[f"{name}.{port}"], frame_period_s)
-            for port in ("estimated_state", "covariance"):
-                logged[f"{name}_filter.{port}"] = (exported[f"{name}_filter.{port}"], period_s)
+        logged = {
+            signal: (port, frame_periods_s.get(signal, model.sample_period_s))
+            for signal, port in exported.items()
+        }
         loggers = _add_loggers(builder, logged)
 
     diagram = builder.Build()

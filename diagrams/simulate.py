@@ -120,13 +120,13 @@ def recording_channels(run: SimulationRun) -> list[Channel]:
     channels = [
         Channel(
             REFERENCE_TOPIC,
-            _nanoseconds(s["reference"].times_s),
-            {"reference_m": s["reference"].values[0]},
+            _nanoseconds(s["reference_head_height_m"].times_s),
+            {"reference_m": s["reference_head_height_m"].values[0]},
         ),
         Channel(
             HEAD_POSITION_TOPIC,
-            _nanoseconds(s["head_height"].times_s),
-            {"head_position_m": s["head_height"].values[0]},
+            _nanoseconds(s["head_height_m"].times_s),
+            {"head_position_m": s["head_height_m"].values[0]},
         ),
     ]
     for name in run.closed_loop.sensor_names:
@@ -152,8 +152,8 @@ def recording_channels(run: SimulationRun) -> list[Channel]:
     channels.append(
         Channel(
             COMMAND_TOPIC,
-            _nanoseconds(s["command"].times_s),
-            {"current_a": s["command"].values[0]},
+            _nanoseconds(s["valve_current_a"].times_s),
+            {"current_a": s["valve_current_a"].values[0]},
         )
     )
     return channels
@@ -164,16 +164,16 @@ def plot_run(run: SimulationRun, path: Path) -> Path:
     s = run.signals
     return plot_closed_loop(
         path,
-        times_s=s["head_height"].times_s,
-        reference_m=s["reference"].values[0],
-        head_m=s["head_height"].values[0],
+        times_s=s["head_height_m"].times_s,
+        reference_m=s["reference_head_height_m"].values[0],
+        head_m=s["head_height_m"].values[0],
         local_tracks_m={
             name: s[f"{name}_filter.estimated_state"].values[0]
             for name in run.closed_loop.sensor_names
         },
         fused_m=s["fusion.estimated_state"].values[0],
-        command_times_s=s["command"].times_s,
-        command_a=s["command"].values[0],
+        command_times_s=s["valve_current_a"].times_s,
+        command_a=s["valve_current_a"].values[0],
         title="paper plant, paper LQG: head height and valve command",
         tolerance_m=run.config.metrics.tolerance_m,
     )

@@ -116,7 +116,7 @@ def test_dropped_and_invalid_frames_never_reach_the_estimate(config):
     valid = run.signals["kinect_v1.valid"].values[0]
     assert 0.5 < np.mean(valid) < 0.7
     fused = run.signals["fusion.estimated_state"].values
-    head = run.signals["head_height"].values[0]
+    head = run.signals["head_height_m"].values[0]
     assert np.all(np.isfinite(fused))
     # Zeros would read as a head 0.9-1.04 m up; the estimate stays within millimetres of truth.
     assert np.max(np.abs(fused[0] - head)) < 0.01

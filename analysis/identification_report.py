@@ -12,7 +12,7 @@ estimated initial state alone.
 """
 
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -176,7 +176,7 @@ def baseline_figures(fitted: FittedModel, parts: list[Part], progress=None) -> d
                 model.sample_period_s,
                 estimate_initial_state=fitted.estimated_initial_state,
                 with_input=False,
-                initial_model=replace(model, b=np.zeros(model.order)),
+                initial_model=model,  # estimate_pem zeroes b without input
                 progress=progress,
             ),
             fitted.estimated_initial_state,
@@ -220,16 +220,15 @@ def margins(figures: dict, baselines: dict, naive: dict, part_name: str) -> dict
     }
 
 
-def verdict(figures: dict, baselines: dict, part_name: str, stable: bool) -> str:
-    """Whether the input explains the output, in plain words, from one part's figures.
+def verdict(figures: dict, baselines: dict, gains: dict, part_name: str, stable: bool) -> str:
+    """Whether the input explains the output, in plain words, from one part's figures and the
+    model's ``margins`` over the baselines on that part.
 
     "explains the output": the input-driven simulation fits at least 50 % and beats the initial
     state's free response (or zero) by 10 points. "essentially nothing": dropping the input costs
     less than 0.1 points of one-step fit and the simulation does not beat the free response (or
     zero) by 10 points. Otherwise "part of the output".
     """
-    naive_stub = {part_name: {"fit_percent_1step": figures["fit_percent_1step"]}}
-    gains = margins(figures, baselines, naive_stub, part_name)
     structure, order = baselines["without_input_structure"].upper(), baselines["order"]
     evidence = (
         f"without the input the same order-{order} structure ({structure}) predicts one step "
@@ -274,6 +273,7 @@ def identify(
         figures = {part.name: part_figures(fitted, part, estimation, k_step) for part in parts}
         model_baselines = baseline_figures(fitted, parts, progress)
         stable = model.is_stable()
+        gains = margins(figures[validation.name], model_baselines, naive, validation.name)
         entry = {
             "method": method,
             "order": order,
@@ -287,10 +287,10 @@ def identify(
             "dc_gain": model.dc_gain(),
             **fitted.details,
             **figures,
-            "margins_on_validation": margins(
-                figures[validation.name], model_baselines, naive, validation.name
+            "margins_on_validation": gains,
+            "verdict": verdict(
+                figures[validation.name], model_baselines, gains, validation.name, stable
             ),
-            "verdict": verdict(figures[validation.name], model_baselines, validation.name, stable),
         }
         if method == "armax":
             entry["polynomials"] = {

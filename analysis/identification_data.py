@@ -78,33 +78,38 @@ def read_csv_signal(path: str | Path, column: str | None = None) -> np.ndarray:
     return np.array(values)
 
 
-def read_mcap_signal(path: str | Path, topic_and_field: str) -> tuple[np.ndarray, np.ndarray]:
-    """One signal from a maskless MCAP recording: (log times in ns, values).
+def read_mcap_signals(
+    path: str | Path, *topics_and_fields: str
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Signals from a maskless MCAP recording, read once: (log times in ns, values) for each.
 
     Args:
         path: the recording.
-        topic_and_field: "TOPIC:FIELD", e.g. "/controller/command:current_a".
+        topics_and_fields: each "TOPIC:FIELD", e.g. "/controller/command:current_a".
     """
-    topic, separator, field = topic_and_field.rpartition(":")
-    if not separator or not topic or not field:
-        raise RecordError(f"{path}: {topic_and_field!r} should be TOPIC:FIELD")
     try:
         recording = read_recording(path)
     except ValueError as error:
         raise RecordError(str(error)) from None
-    if topic not in recording.messages:
-        raise RecordError(f"{path}: no topic {topic!r}; it has {sorted(recording.messages)}")
-    messages = recording.messages[topic]
-    if messages and field not in messages[0][1]:
-        raise RecordError(
-            f"{path}: topic {topic} has no field {field!r}; it has {sorted(messages[0][1])}"
-        )
-    times, values = recording.topic_arrays(topic, field)
-    values = np.asarray(values, dtype=float)
-    bad = np.flatnonzero(~np.isfinite(values))
-    if bad.size:
-        raise RecordError(f"{path}: {topic}:{field} message {bad[0]} is not a finite number")
-    return times, values
+    signals = []
+    for topic_and_field in topics_and_fields:
+        topic, separator, field = topic_and_field.rpartition(":")
+        if not separator or not topic or not field:
+            raise RecordError(f"{path}: {topic_and_field!r} should be TOPIC:FIELD")
+        if topic not in recording.messages:
+            raise RecordError(f"{path}: no topic {topic!r}; it has {sorted(recording.messages)}")
+        messages = recording.messages[topic]
+        if messages and field not in messages[0][1]:
+            raise RecordError(
+                f"{path}: topic {topic} has no field {field!r}; it has {sorted(messages[0][1])}"
+            )
+        times, values = recording.topic_arrays(topic, field)
+        values = np.asarray(values, dtype=float)
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise RecordError(f"{path}: {topic}:{field} message {bad[0]} is not a finite number")
+        signals.append((times, values))
+    return signals
 
 
 def parse_range(text: str, samples: int, what: str) -> slice:

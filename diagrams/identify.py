@@ -21,7 +21,7 @@ from maskless.analysis.identification_data import (
     detrend,
     parse_range,
     read_csv_signal,
-    read_mcap_signal,
+    read_mcap_signals,
 )
 from maskless.analysis.identification_plots import plot_compare, plot_residuals
 from maskless.analysis.identification_report import METHODS, Part, identify
@@ -146,8 +146,13 @@ def read_signals(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray, tupl
     if args.input.suffix == ".mcap" or output_path.suffix == ".mcap":
         input_field = args.input_column or "/controller/command:current_a"
         output_field = args.output_column or "/fusion/estimate:position_m"
-        input_times, u = read_mcap_signal(args.input, input_field)
-        output_times, y = read_mcap_signal(output_path, output_field)
+        if output_path == args.input:  # one recording holds both: read it once
+            (input_times, u), (output_times, y) = read_mcap_signals(
+                args.input, input_field, output_field
+            )
+        else:
+            ((input_times, u),) = read_mcap_signals(args.input, input_field)
+            ((output_times, y),) = read_mcap_signals(output_path, output_field)
         common, input_index, output_index = np.intersect1d(
             input_times, output_times, return_indices=True
         )

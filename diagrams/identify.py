@@ -29,6 +29,9 @@ from maskless.analysis.model_file import model_file_contents
 from maskless.analysis.subspace import default_horizon
 from maskless.diagrams.background import BackgroundTask
 
+# What `maskless identify` reports as a message rather than a traceback.
+USER_ERRORS = (RecordError, FileNotFoundError)
+
 # Records at least this long report the optimiser's progress on stderr.
 _PROGRESS_MIN_SAMPLES = 50_000
 # A maskless recording's field names end in their SI unit.

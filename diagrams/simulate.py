@@ -38,6 +38,9 @@ from maskless.diagrams.config import (
     validate_simulation_config,
 )
 
+# What `maskless simulate` reports as a message rather than a traceback.
+USER_ERRORS = (ConfigError, FileNotFoundError)
+
 # Long runs report progress this often (fraction of the duration), on stderr.
 _PROGRESS_CHUNKS = 10
 _PROGRESS_MIN_DURATION_S = 600.0

@@ -26,10 +26,12 @@ def plot_closed_loop(
     command_times_s: np.ndarray,
     command_a: np.ndarray,
     title: str,
+    outlet_command_a: np.ndarray | None = None,
     tolerance_m: float | None = None,
 ) -> Path:
-    """Heights (reference, true head, each local track, fused track) above the valve command, on a
-    shared time axis. All height arrays are sampled at ``times_s``. Returns the written path."""
+    """Heights (reference, true head, each local track, fused track) above the valve commands
+    (inlet, and outlet when given), on a shared time axis. All height arrays are sampled at
+    ``times_s``. Returns the written path."""
     # Imported here: matplotlib is a third of the command's start-up, and `maskless simulate`
     # renders in a second process. A bare Figure needs no GUI backend and no pyplot.
     from matplotlib.figure import Figure
@@ -62,7 +64,17 @@ def plot_closed_loop(
     heights.set_title(title)
     heights.legend(loc="best", fontsize=8, ncol=2)
     heights.grid(alpha=0.3)
-    command.step(*_thin(command_times_s, a_to_ma(command_a)), where="post", color="tab:green")
+    command.step(
+        *_thin(command_times_s, a_to_ma(command_a)), where="post", color="tab:green", label="inlet"
+    )
+    if outlet_command_a is not None:
+        command.step(
+            *_thin(command_times_s, a_to_ma(outlet_command_a)),
+            where="post",
+            color="tab:orange",
+            label="outlet",
+        )
+        command.legend(loc="best", fontsize=8)
     command.set_ylabel("valve current (mA)")
     command.set_xlabel("time (s)")
     command.grid(alpha=0.3)

@@ -136,8 +136,14 @@ _SCHEMAS: dict[str, dict[str, Any]] = {
     ),
     "maskless.ValveCommand": _object_schema(
         "maskless.ValveCommand",
-        "Proportional-valve command from the controller. Units: amperes (A).",
-        {"current_a": {"type": "number", "description": "valve coil current (A)"}},
+        "Proportional-valve commands from the controller. Units: amperes (A).",
+        {
+            "current_a": {"type": "number", "description": "inlet valve coil current (A)"},
+            "outlet_current_a": {
+                "type": "number",
+                "description": "outlet (vacuum) valve coil current (A)",
+            },
+        },
     ),
 }
 

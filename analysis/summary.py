@@ -9,6 +9,7 @@ import numpy as np
 
 from maskless.analysis.metrics import estimate_error_std_m, tracking_metrics
 from maskless.systems.lqg_controller import closed_loop_poles
+from maskless.systems.offset_free_lqg import closed_loop_poles as offset_free_poles
 from maskless.systems.units import a_to_ma, m_to_mm
 
 if TYPE_CHECKING:
@@ -46,22 +47,25 @@ def summarize(run: "SimulationRun") -> dict:
         float(np.mean(fused[times >= start] - head[times >= start]))
     )
 
-    model, design, paper = loop.model, loop.design, config.paper
-    # The model's output is a distance below the camera; the head rises as it shrinks.
-    lift_gain_mm_per_ma = -m_to_mm(model.dc_gain_m_per_a()) / a_to_ma(1.0)
-    lift_limits = [
-        lift_gain_mm_per_ma * (current - paper.operating_current_ma)
-        for current in (0.0, paper.valve_saturation_current_ma)
-    ]
-    poles = closed_loop_poles(model, design)
-    command = s["valve_current_a"].values[0]
+    paper = config.paper
+    inlet = s["inlet_valve_current_a"].values[0]
+    outlet = s["outlet_valve_current_a"].values[0]
+    commands = {
+        "inlet_range_ma": [a_to_ma(float(inlet.min())), a_to_ma(float(inlet.max()))],
+        "outlet_range_ma": [a_to_ma(float(outlet.min())), a_to_ma(float(outlet.max()))],
+    }
+    controller = (
+        _paper_model_figures(loop, paper, inlet)
+        if loop.controller == "paper-lqg"
+        else _offset_free_figures(loop)
+    )
 
     def tracking_mm(value):
         return None if value is None else m_to_mm(value)
 
     return {
-        "plant": "paper",
-        "controller": "paper-lqg",
+        "plant": loop.plant,
+        "controller": loop.controller,
         "duration_s": config.duration_s,
         "random_seed": config.random_seed,
         "tracking": {
@@ -78,17 +82,8 @@ def summarize(run: "SimulationRun") -> dict:
             "reference_travel_mm": m_to_mm(float(reference.max() - reference.min())),
         },
         "estimation": estimation,
-        "paper_model": {
-            "lift_gain_mm_per_ma": lift_gain_mm_per_ma,
-            "steady_lift_range_mm": sorted(lift_limits),
-            "lqr_gain_ma_per_mm": (design.K[0] * a_to_ma(1.0) / m_to_mm(1.0)).tolist(),
-            "open_loop_pole_magnitudes": np.abs(poles["open_loop"]).tolist(),
-            "regulator_pole_magnitudes": np.abs(poles["regulator"]).tolist(),
-            "estimator_pole_magnitudes": np.abs(poles["estimator"]).tolist(),
-            "command_range_ma": [a_to_ma(float(command.min())), a_to_ma(float(command.max()))],
-            "operating_current_ma": paper.operating_current_ma,
-            "valve_range_ma": [0.0, paper.valve_saturation_current_ma],
-        },
+        "valve_commands": commands,
+        "paper_model" if loop.controller == "paper-lqg" else "offset_free_lqg": controller,
         "paper_reported": {
             "fused_std_mm": paper.reported_fused_std_mm,
             "tracking_band_mm": paper.reported_tracking_band_mm,
@@ -102,9 +97,44 @@ def summarize(run: "SimulationRun") -> dict:
     }
 
 
+def _paper_model_figures(loop, paper, command) -> dict:
+    """Why the paper's LQG cannot move the head: its model's gain and its poles."""
+    model, design = loop.model, loop.design
+    # The model's output is a distance below the camera; the head rises as it shrinks.
+    lift_gain_mm_per_ma = -m_to_mm(model.dc_gain_m_per_a()) / a_to_ma(1.0)
+    lift_limits = [
+        lift_gain_mm_per_ma * (current - paper.operating_current_ma)
+        for current in (0.0, paper.valve_saturation_current_ma)
+    ]
+    poles = closed_loop_poles(model, design)
+    return {
+        "lift_gain_mm_per_ma": lift_gain_mm_per_ma,
+        "steady_lift_range_mm": sorted(lift_limits),
+        "lqr_gain_ma_per_mm": (design.K[0] * a_to_ma(1.0) / m_to_mm(1.0)).tolist(),
+        "open_loop_pole_magnitudes": np.abs(poles["open_loop"]).tolist(),
+        "regulator_pole_magnitudes": np.abs(poles["regulator"]).tolist(),
+        "estimator_pole_magnitudes": np.abs(poles["estimator"]).tolist(),
+        "command_range_ma": [a_to_ma(float(command.min())), a_to_ma(float(command.max()))],
+        "operating_current_ma": paper.operating_current_ma,
+        "valve_range_ma": [0.0, paper.valve_saturation_current_ma],
+    }
+
+
+def _offset_free_figures(loop) -> dict:
+    """The offset-free design's model and poles."""
+    poles = offset_free_poles(loop.design)
+    return {
+        "model_order": int(loop.model.A.shape[0]),
+        "sample_period_s": loop.model.sample_period_s,
+        "model_dc_gain": loop.model.dc_gain(),
+        "regulator_pole_magnitudes": np.abs(poles["regulator"]).tolist(),
+        "estimator_pole_magnitudes": np.abs(poles["estimator"]).tolist(),
+    }
+
+
 def format_summary(summary: dict) -> str:
     """The summary as lines a person reads."""
-    t, e, p = summary["tracking"], summary["estimation"], summary["paper_model"]
+    t, e = summary["tracking"], summary["estimation"]
     reported = summary["paper_reported"]
     band = t["tolerance_mm"]
     settle = (
@@ -143,9 +173,36 @@ def format_summary(summary: dict) -> str:
         f"  fused mean error {e['fused_error_mean_mm']:+.3f} mm; the paper reports a fused std "
         f"of at most {reported['fused_std_mm']:g} mm"
     )
+    c = summary["valve_commands"]
+    lines += [
+        "",
+        f"Valve commands: inlet {c['inlet_range_ma'][0]:.1f}-{c['inlet_range_ma'][1]:.1f} mA, "
+        f"outlet {c['outlet_range_ma'][0]:.1f}-{c['outlet_range_ma'][1]:.1f} mA",
+    ]
+    if "paper_model" in summary:
+        lines += _format_paper_model(summary["paper_model"])
+    else:
+        o = summary["offset_free_lqg"]
+        lines += [
+            f"Offset-free LQG on an order-{o['model_order']} model at "
+            f"{o['sample_period_s']:.4f} s: pole magnitudes regulator "
+            f"{_poles(o['regulator_pole_magnitudes'])}, estimator "
+            f"{_poles(o['estimator_pole_magnitudes'])}",
+        ]
+    lines += [
+        "",
+        f"Wall time {summary['timing']['wall_time_s']:.3f} s "
+        f"({summary['timing']['real_time_factor']:.0f}x real time)",
+    ]
+    if "files" in summary:
+        lines += ["Files:"] + [f"  {kind}: {path}" for kind, path in summary["files"].items()]
+    return "\n".join(lines)
+
+
+def _format_paper_model(p: dict) -> list[str]:
     lo, hi = p["steady_lift_range_mm"]
     valve_lo, valve_hi = p["valve_range_ma"]
-    lines += [
+    return [
         "",
         "Why the paper's loop cannot track (its own model, Eq. 26)",
         f"  steady-state lift {p['lift_gain_mm_per_ma']:.3e} mm/mA: the whole valve range "
@@ -157,13 +214,7 @@ def format_summary(summary: dict) -> str:
         f"with LQR {_poles(p['regulator_pole_magnitudes'])}",
         f"  command stayed in [{p['command_range_ma'][0]:.3f}, {p['command_range_ma'][1]:.3f}] mA "
         f"around the operating point {p['operating_current_ma']:.2f} mA",
-        "",
-        f"Wall time {summary['timing']['wall_time_s']:.3f} s "
-        f"({summary['timing']['real_time_factor']:.0f}x real time)",
     ]
-    if "files" in summary:
-        lines += ["Files:"] + [f"  {kind}: {path}" for kind, path in summary["files"].items()]
-    return "\n".join(lines)
 
 
 def _poles(magnitudes) -> str:

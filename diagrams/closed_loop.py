@@ -1,20 +1,35 @@
-"""The paper's closed loop as one named Drake Diagram.
+"""The closed loop as one named Drake Diagram.
 
-reference -> LQG controller -> valve limits -> paper plant -> head height -> kinect_v1, kinect_v2
--> local Kalman filters -> track-to-track fusion -> fused height -> LQG controller.
+reference -> controller -> inlet and outlet valve currents -> plant -> head height -> kinect_v1,
+kinect_v2 -> local Kalman filters -> track-to-track fusion -> fused height -> controller.
+
+The plant is the pneumatic "real robot", the paper's identified model or a model file; the
+controller is the offset-free LQG or the paper's LQG (which drives the inlet only).
 """
 
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import Multiplexer, Saturation, TrajectorySource, VectorLogSink
+from pydrake.systems.framework import Diagram, DiagramBuilder, InputPort, OutputPort
+from pydrake.systems.primitives import (
+    ConstantVectorSource,
+    Multiplexer,
+    Saturation,
+    TrajectorySource,
+    VectorLogSink,
+)
 from pydrake.trajectories import PiecewisePolynomial
 
-from maskless.diagrams.config import ReferenceConfig, SimulationConfig
+from maskless.analysis.model_file import load_identified_model
+from maskless.diagrams.config import ReferenceConfig, SimulationConfig, model_file_of
 from maskless.systems.depth_sensor import add_depth_sensor
 from maskless.systems.local_kalman_filter import add_local_kalman_filter
-from maskless.systems.lqg_controller import LqgDesign, add_lqg_controller, design_lqg
+from maskless.systems.lqg_controller import add_lqg_controller, design_lqg
+from maskless.systems.offset_free_lqg import (
+    add_offset_free_lqg,
+    design_model_from_identified,
+    design_offset_free_lqg,
+)
 from maskless.systems.paper_parameters import (
     IdentifiedModel,
     paper_filter_variances_si,
@@ -22,8 +37,16 @@ from maskless.systems.paper_parameters import (
     paper_lqg_weights,
 )
 from maskless.systems.paper_plant import add_paper_plant, operating_head_height_m
+from maskless.systems.pneumatic_design import (
+    pneumatic_allocation,
+    pneumatic_design_model,
+    with_head_mass,
+)
+from maskless.systems.pneumatic_physics import LIFT
+from maskless.systems.pneumatic_plant import add_pneumatic_plant, equilibrium_state
 from maskless.systems.track_fusion import add_track_fusion
 from maskless.systems.units import ma_to_a
+from maskless.systems.valve_allocation import SplitRangeAllocation, current_split_allocation
 
 # Far beyond any run, so the last reference value holds for the rest of the simulation.
 _REFERENCE_HOLD_S = 1.0e9
@@ -34,21 +57,38 @@ class ClosedLoop:
     """A built closed loop and what a caller needs to read it.
 
     Attributes:
-        diagram: the Diagram, named "paper_closed_loop".
-        loggers: exported output name -> (VectorLogSink, the rows of its log that hold that
-            output); empty when built without recording.
-        model: the plant model the controller was designed on.
-        design: the controller's gains.
+        diagram: the Diagram, named "{plant}_{controller}_closed_loop".
+        plant: which plant ("pneumatic", "paper" or "identified").
+        controller: which controller ("offset-free-lqg" or "paper-lqg").
+        model: the linear model the controller was designed on (IdentifiedModel for paper-lqg,
+            LinearDesignModel for offset-free-lqg).
+        design: the controller's gains (LqgDesign or OffsetFreeLqgDesign).
         start_height_m: head height above the table at t = 0 (m).
         sensor_names: the cameras, in order.
+        loggers: exported output name -> (VectorLogSink, the rows of its log that hold that
+            output); empty when built without recording.
     """
 
     diagram: Diagram
-    model: IdentifiedModel
-    design: LqgDesign
+    plant: str
+    controller: str
+    model: object
+    design: object
     start_height_m: float
     sensor_names: list[str]
     loggers: dict[str, tuple[VectorLogSink, slice]] = field(default_factory=dict)
+
+
+@dataclass
+class _Plant:
+    """An added plant's ports and what the controller design needs from it."""
+
+    inlet: InputPort
+    outlet: InputPort | None
+    head_height: OutputPort
+    start_height_m: float
+    model: IdentifiedModel | None = None
+    camera_height_m: float | None = None
 
 
 def make_reference_trajectory(reference: ReferenceConfig, start_height_m: float):
@@ -79,43 +119,130 @@ def _add_loggers(builder: DiagramBuilder, logged: dict) -> dict[str, tuple[Vecto
     return loggers
 
 
-def build_paper_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLoop:
-    """Wires the paper's whole chain for ``config``.
+def _identified_model(choice: str) -> IdentifiedModel:
+    return load_identified_model(model_file_of(choice))
+
+
+def _pneumatic_allocation(config: SimulationConfig) -> SplitRangeAllocation:
+    """The nominal plant's Hammerstein inverse: the controller knows the nominal head only."""
+    nominal = with_head_mass(config.pneumatic, config.pneumatic.nominal_head_mass_kg)
+    return pneumatic_allocation(nominal, config.offset_free_lqg.outlet_full_open_below_m)
+
+
+def _add_plant(builder: DiagramBuilder, config: SimulationConfig) -> _Plant:
+    paper = config.paper
+    valve_currents_a = (
+        ma_to_a(paper.valve_starting_current_ma),
+        ma_to_a(paper.valve_saturation_current_ma),
+    )
+    if config.plant == "pneumatic":
+        p = config.pneumatic
+        start_inlet_a, start_outlet_a = _pneumatic_allocation(config).currents(config.start_lift_m)
+        state = equilibrium_state(p, float(start_inlet_a), float(start_outlet_a))
+        plant = add_pneumatic_plant(builder, p, state, p.simulation_step_s, name="pneumatic_plant")
+        return _Plant(
+            inlet=plant.inputs["inlet_valve_current_a"],
+            outlet=plant.inputs["outlet_valve_current_a"],
+            head_height=plant.outputs["head_height_m"],
+            start_height_m=p.rest_head_height_m + state[LIFT],
+        )
+    if config.plant == "paper":
+        # The model was identified on the fused distance in the Kinect v2 frame (Sec. III-B).
+        model, camera_height_m = paper_identified_model(paper), config.kinect_v2.mount_height_m
+    else:
+        model, camera_height_m = _identified_model(config.plant), None
+    plant = add_paper_plant(
+        builder,
+        model,
+        camera_height_m,
+        *valve_currents_a,
+        name=f"{config.plant.split(':')[0]}_plant",
+    )
+    return _Plant(
+        inlet=plant.inputs["inlet_valve_current_a"],
+        outlet=None,
+        head_height=plant.outputs["head_height_m"],
+        start_height_m=operating_head_height_m(model, camera_height_m),
+        model=model,
+        camera_height_m=camera_height_m,
+    )
+
+
+def _offset_free_design(config: SimulationConfig, plant: _Plant):
+    """(design model, allocation) for the offset-free LQG on ``plant``."""
+    settings = config.offset_free_lqg
+    if config.controller == "offset-free-lqg" and config.plant == "pneumatic":
+        allocation = _pneumatic_allocation(config)
+        nominal = with_head_mass(config.pneumatic, config.pneumatic.nominal_head_mass_kg)
+        model = pneumatic_design_model(
+            nominal, allocation, settings.operating_lift_m, settings.sample_period_s
+        )
+        return model, allocation
+    if config.controller == "offset-free-lqg":
+        identified, camera_height_m = plant.model, plant.camera_height_m
+    else:
+        identified, camera_height_m = _identified_model(config.controller), None
+    model = design_model_from_identified(identified, camera_height_m)
+    return model, current_split_allocation(config.pneumatic.inlet, config.pneumatic.outlet)
+
+
+def build_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLoop:
+    """Wires the whole chain for ``config``: its plant, cameras, filters, fusion and controller.
 
     Args:
         config: a validated SimulationConfig.
         record: add VectorLogSinks for every recorded signal (the core-speed benchmark omits them).
 
-    Exported outputs: ``reference_head_height_m``, ``head_height_m``, ``valve_current_a``,
-    ``fusion.estimated_state``, ``fusion.covariance``, and for each camera ``{name}.distance_m``,
-    ``{name}.valid``, ``{name}_filter.estimated_state`` and ``{name}_filter.covariance``.
+    Exported outputs: ``reference_head_height_m``, ``head_height_m``, ``inlet_valve_current_a``,
+    ``outlet_valve_current_a``, ``fusion.estimated_state``, ``fusion.covariance``, and for each
+    camera ``{name}.distance_m``, ``{name}.valid``, ``{name}_filter.estimated_state`` and
+    ``{name}_filter.covariance``.
     """
     paper = config.paper
-    model = paper_identified_model(paper)
-    design = design_lqg(model, paper_lqg_weights(paper))
-    # The model was identified on the fused distance in the Kinect v2 frame (Sec. III-B).
-    model_camera_height_m = config.kinect_v2.mount_height_m
-    start_height_m = operating_head_height_m(model, model_camera_height_m)
     variances = paper_filter_variances_si(paper)
-    saturation_current_a = ma_to_a(paper.valve_saturation_current_ma)
-
     builder = DiagramBuilder()
     # Components are added flat (add_*), not as nested Diagrams: nesting nearly doubles the cost of
     # a step (benchmarks/system_overhead.py), and the loop must run >= 1000x faster than real time.
+    plant = _add_plant(builder, config)
+    start_height_m = plant.start_height_m
     reference = builder.AddNamedSystem(
         "reference",
         TrajectorySource(make_reference_trajectory(config.reference, start_height_m)),
     )
-    valve_currents_a = (ma_to_a(paper.valve_starting_current_ma), saturation_current_a)
-    controller = add_lqg_controller(
-        builder, model, design, model_camera_height_m, valve_currents_a, "paper_lqg"
-    )
-    limits = builder.AddNamedSystem(
-        "valve_current_limits", Saturation([0.0], [saturation_current_a])
-    )
-    plant = add_paper_plant(
-        builder, model, model_camera_height_m, *valve_currents_a, name="paper_plant"
-    )
+
+    if config.controller == "paper-lqg":
+        model = paper_identified_model(paper)
+        design = design_lqg(model, paper_lqg_weights(paper))
+        saturation_current_a = ma_to_a(paper.valve_saturation_current_ma)
+        valve_currents_a = (ma_to_a(paper.valve_starting_current_ma), saturation_current_a)
+        camera_height_m = config.kinect_v2.mount_height_m
+        controller = add_lqg_controller(
+            builder, model, design, camera_height_m, valve_currents_a, "paper_lqg"
+        )
+        limits = builder.AddNamedSystem(
+            "valve_current_limits", Saturation([0.0], [saturation_current_a])
+        )
+        builder.Connect(controller.outputs["valve_current_a"], limits.get_input_port())
+        builder.Connect(limits.get_output_port(), controller.inputs["applied_current_a"])
+        inlet_command = limits.get_output_port()
+        # The paper's loop drives the inlet only; the outlet stays shut.
+        outlet_command = builder.AddNamedSystem(
+            "outlet_valve_shut", ConstantVectorSource([0.0])
+        ).get_output_port()
+        sample_period_s = model.sample_period_s
+    else:
+        model, allocation = _offset_free_design(config, plant)
+        design = design_offset_free_lqg(model, config.offset_free_lqg.weights)
+        controller = add_offset_free_lqg(
+            builder, design, allocation, start_height_m, name="offset_free_lqg"
+        )
+        inlet_command = controller.outputs["inlet_valve_current_a"]
+        outlet_command = controller.outputs["outlet_valve_current_a"]
+        sample_period_s = model.sample_period_s
+    builder.Connect(inlet_command, plant.inlet)
+    if plant.outlet is not None:
+        builder.Connect(outlet_command, plant.outlet)
+
     sensor_names = list(config.sensors())
     filters = {}
     sensors = {}
@@ -132,7 +259,7 @@ def build_paper_closed_loop(config: SimulationConfig, record: bool = True) -> Cl
             valid_range_m=(sensor_config.min_range_m, sensor_config.max_range_m),
             config=config.local_filter,
         )
-        builder.Connect(plant.outputs["head_height_m"], sensor.inputs["head_height_m"])
+        builder.Connect(plant.head_height, sensor.inputs["head_height_m"])
         for port in ("distance_m", "valid"):
             builder.Connect(sensor.outputs[port], local_filter.inputs[port])
         sensors[name], filters[name] = sensor, local_filter
@@ -142,14 +269,12 @@ def build_paper_closed_loop(config: SimulationConfig, record: bool = True) -> Cl
             builder.Connect(local_filter.outputs[port], fusion.inputs[f"{name}_{port}"])
     builder.Connect(fusion.outputs["estimated_state"], controller.inputs["fused_estimated_state"])
     builder.Connect(reference.get_output_port(), controller.inputs["reference_head_height_m"])
-    builder.Connect(controller.outputs["valve_current_a"], limits.get_input_port())
-    builder.Connect(limits.get_output_port(), plant.inputs["valve_current_a"])
-    builder.Connect(limits.get_output_port(), controller.inputs["applied_current_a"])
 
     exported = {
         "reference_head_height_m": reference.get_output_port(),
-        "head_height_m": plant.outputs["head_height_m"],
-        "valve_current_a": limits.get_output_port(),
+        "head_height_m": plant.head_height,
+        "inlet_valve_current_a": inlet_command,
+        "outlet_valve_current_a": outlet_command,
         "fusion.estimated_state": fusion.outputs["estimated_state"],
         "fusion.covariance": fusion.outputs["covariance"],
     }
@@ -171,15 +296,19 @@ def build_paper_closed_loop(config: SimulationConfig, record: bool = True) -> Cl
             for port in ("distance_m", "valid")
         }
         logged = {
-            signal: (port, frame_periods_s.get(signal, model.sample_period_s))
+            signal: (port, frame_periods_s.get(signal, sample_period_s))
             for signal, port in exported.items()
         }
         loggers = _add_loggers(builder, logged)
 
     diagram = builder.Build()
-    diagram.set_name("paper_closed_loop")
+    plant_name = config.plant.split(":")[0]
+    controller_name = config.controller.split(":")[0]
+    diagram.set_name(f"{plant_name}_{controller_name}_closed_loop".replace("-", "_"))
     return ClosedLoop(
         diagram=diagram,
+        plant=plant_name,
+        controller=controller_name,
         model=model,
         design=design,
         start_height_m=start_height_m,

@@ -8,11 +8,20 @@ from pathlib import Path
 from maskless.assets.loader import UNSET, ConfigError, asset_path, find_unset_fields, load_config
 from maskless.systems.depth_sensor import KinectV1Config, KinectV2Config, validate_sensor_config
 from maskless.systems.local_kalman_filter import LocalFilterConfig
+from maskless.systems.offset_free_lqg import OffsetFreeLqgWeights
 from maskless.systems.paper_parameters import (
     PaperParameters,
     load_paper_parameters,
     validate_paper_parameters,
 )
+from maskless.systems.pneumatic_physics import PneumaticParameters
+from maskless.systems.pneumatic_plant import (
+    load_pneumatic_parameters,
+    validate_pneumatic_parameters,
+)
+
+PLANTS = ("pneumatic", "paper", "identified:MODEL.yaml")
+CONTROLLERS = ("offset-free-lqg", "offset-free-lqg:MODEL.yaml", "paper-lqg")
 
 
 @dataclass
@@ -46,17 +55,49 @@ class MetricsConfig:
 
 
 @dataclass
+class OffsetFreeLqgConfig:
+    """The offset-free LQG controller's design choices.
+
+    Attributes:
+        sample_period_s: the controller's period (s).
+        operating_lift_m: the pneumatic plant is linearised for design at this lift (m).
+        outlet_full_open_below_m: the split-range allocation opens the outlet fully this far below
+            the lowest lift the bladder holds with both valves shut (m).
+        weights: LQR and Kalman weights.
+    """
+
+    sample_period_s: float = UNSET
+    operating_lift_m: float = UNSET
+    outlet_full_open_below_m: float = UNSET
+    weights: OffsetFreeLqgWeights = field(default_factory=OffsetFreeLqgWeights)
+
+
+@dataclass
 class SimulationConfig:
-    """Everything a closed-loop run needs; defaults from assets/simulation.yaml and paper.yaml."""
+    """Everything a closed-loop run needs; defaults from assets/simulation.yaml, pneumatic.yaml
+    and paper.yaml.
+
+    Attributes (besides the sections):
+        plant: "pneumatic", "paper" or "identified:MODEL.yaml" (a `maskless identify` model file
+            whose output is the head height).
+        controller: "offset-free-lqg" (designed on the plant's linearisation or model),
+            "offset-free-lqg:MODEL.yaml" (designed on an identified model) or "paper-lqg".
+        start_lift_m: where the pneumatic plant's head starts, at rest (m of lift).
+    """
 
     random_seed: int = 0
     duration_s: float = UNSET
+    plant: str = "pneumatic"
+    controller: str = "offset-free-lqg"
+    start_lift_m: float = UNSET
     reference: ReferenceConfig = field(default_factory=ReferenceConfig)
     kinect_v1: KinectV1Config = field(default_factory=KinectV1Config)
     kinect_v2: KinectV2Config = field(default_factory=KinectV2Config)
     local_filter: LocalFilterConfig = field(default_factory=LocalFilterConfig)
     metrics: MetricsConfig = field(default_factory=MetricsConfig)
     paper: PaperParameters = field(default_factory=PaperParameters)
+    pneumatic: PneumaticParameters = field(default_factory=PneumaticParameters)
+    offset_free_lqg: OffsetFreeLqgConfig = field(default_factory=OffsetFreeLqgConfig)
 
     def sensors(self) -> dict:
         """The camera configs by name, in a fixed order."""
@@ -65,7 +106,7 @@ class SimulationConfig:
 
 def default_config() -> SimulationConfig:
     """The shipped defaults: assets/simulation.yaml over the paper's parameters."""
-    base = SimulationConfig(paper=load_paper_parameters())
+    base = SimulationConfig(paper=load_paper_parameters(), pneumatic=load_pneumatic_parameters())
     return load_config(SimulationConfig, asset_path("simulation.yaml"), defaults=base)
 
 
@@ -137,3 +178,56 @@ def validate_simulation_config(config: SimulationConfig) -> None:
         value = getattr(metrics, field_name)
         require(value >= 0, f"metrics.{field_name}", value, ">= 0")
     validate_paper_parameters(config.paper)
+    validate_pneumatic_parameters(config.pneumatic)
+    _validate_choice("plant", config.plant, PLANTS)
+    _validate_choice("controller", config.controller, CONTROLLERS)
+    controller = config.offset_free_lqg
+    require(
+        controller.sample_period_s > 0,
+        "offset_free_lqg.sample_period_s",
+        controller.sample_period_s,
+        "> 0",
+    )
+    require(
+        controller.outlet_full_open_below_m > 0,
+        "offset_free_lqg.outlet_full_open_below_m",
+        controller.outlet_full_open_below_m,
+        "> 0",
+    )
+    for field_name in (
+        "output_error_weight_per_m2",
+        "command_weight_per_m2",
+        "process_noise_m2",
+        "disturbance_noise_m2",
+        "measurement_noise_m2",
+    ):
+        value = getattr(controller.weights, field_name)
+        require(value > 0, f"offset_free_lqg.weights.{field_name}", value, "> 0")
+    fraction = controller.weights.state_weight_fraction
+    require(fraction >= 0, "offset_free_lqg.weights.state_weight_fraction", fraction, ">= 0")
+    pneumatic = config.pneumatic
+    for field_name in ("start_lift_m", "offset_free_lqg.operating_lift_m"):
+        value = config.start_lift_m if field_name == "start_lift_m" else controller.operating_lift_m
+        require(
+            pneumatic.min_lift_m <= value <= pneumatic.max_lift_m,
+            field_name,
+            value,
+            f"a lift within the bladder's travel [{pneumatic.min_lift_m}, {pneumatic.max_lift_m}]",
+        )
+
+
+def model_file_of(choice: str) -> Path | None:
+    """The model file named by a plant or controller choice ("name:FILE"), if any."""
+    _, separator, path = choice.partition(":")
+    return Path(path) if separator else None
+
+
+def _validate_choice(field_name: str, value: str, allowed: tuple[str, ...]) -> None:
+    """Refuses a choice that is not one of ``allowed`` ("name:MODEL.yaml" takes any file that
+    exists)."""
+    name, separator, path = value.partition(":")
+    forms = {choice.partition(":")[0] + (":" if ":" in choice else "") for choice in allowed}
+    if name + separator not in forms or (separator and not path):
+        raise ConfigError(f"{field_name} = {value!r}: expected one of {', '.join(allowed)}")
+    if separator and not Path(path).is_file():
+        raise ConfigError(f"{field_name} = {value!r}: model file not found: {path}")

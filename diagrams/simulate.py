@@ -1,8 +1,10 @@
-"""Simulate the paper's closed loop: record it to MCAP, plot it and summarise it.
+"""Simulate the closed loop: record it to MCAP, plot it and summarise it.
 
-Runs the whole sensing and control chain of the seed paper (two depth cameras, local Kalman
-filters, track-to-track fusion, LQG, valves, bladder and head) as one Drake Diagram for
---duration simulated seconds, then writes DIR/run.mcap and DIR/run.png and prints a summary.
+Runs the whole sensing and control chain (two depth cameras, local Kalman filters, track-to-track
+fusion, a controller, two valves, bladder and head) as one Drake Diagram for --duration simulated
+seconds, then writes DIR/run.mcap and DIR/run.png and prints a summary. By default the plant is the
+first-principles pneumatic robot and the controller the offset-free LQG; `--plant paper
+--controller paper-lqg` reproduces the seed paper's loop.
 """
 
 import argparse
@@ -31,7 +33,7 @@ from maskless.analysis.recording import (
 from maskless.analysis.summary import format_summary, summarize
 from maskless.assets.loader import ConfigError
 from maskless.diagrams.background import BackgroundTask
-from maskless.diagrams.closed_loop import ClosedLoop, build_paper_closed_loop
+from maskless.diagrams.closed_loop import ClosedLoop, build_closed_loop
 from maskless.diagrams.config import (
     SimulationConfig,
     load_simulation_config,
@@ -82,7 +84,7 @@ def run_closed_loop(
         record: log every recorded signal (False measures the bare diagram).
         progress: called as progress(simulated_s, duration_s) between chunks of a long run.
     """
-    closed_loop = build_paper_closed_loop(config, record=record)
+    closed_loop = build_closed_loop(config, record=record)
     simulator = Simulator(closed_loop.diagram)
     context = simulator.get_mutable_context()
     closed_loop.diagram.SetRandomContext(context, RandomGenerator(config.random_seed))
@@ -155,8 +157,11 @@ def recording_channels(run: SimulationRun) -> list[Channel]:
     channels.append(
         Channel(
             COMMAND_TOPIC,
-            _nanoseconds(s["valve_current_a"].times_s),
-            {"current_a": s["valve_current_a"].values[0]},
+            _nanoseconds(s["inlet_valve_current_a"].times_s),
+            {
+                "current_a": s["inlet_valve_current_a"].values[0],
+                "outlet_current_a": s["outlet_valve_current_a"].values[0],
+            },
         )
     )
     return channels
@@ -175,9 +180,11 @@ def plot_run(run: SimulationRun, path: Path) -> Path:
             for name in run.closed_loop.sensor_names
         },
         fused_m=s["fusion.estimated_state"].values[0],
-        command_times_s=s["valve_current_a"].times_s,
-        command_a=s["valve_current_a"].values[0],
-        title="paper plant, paper LQG: head height and valve command",
+        command_times_s=s["inlet_valve_current_a"].times_s,
+        command_a=s["inlet_valve_current_a"].values[0],
+        outlet_command_a=s["outlet_valve_current_a"].values[0],
+        title=f"{run.closed_loop.plant} plant, {run.closed_loop.controller}: head height and "
+        "valve commands",
         tolerance_m=run.config.metrics.tolerance_m,
     )
 
@@ -213,6 +220,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="YAML overriding the shipped defaults (assets/simulation.yaml)",
     )
     parser.add_argument(
+        "--plant",
+        default=None,
+        metavar="PLANT",
+        help="pneumatic (the first-principles robot), paper (Eq. 25-26) or identified:MODEL.yaml "
+        "(a model `maskless identify` wrote, output the head height); default: the config's, "
+        "pneumatic",
+    )
+    parser.add_argument(
+        "--controller",
+        default=None,
+        metavar="CONTROLLER",
+        help="offset-free-lqg (designed on the plant), offset-free-lqg:MODEL.yaml (designed on an "
+        "identified model) or paper-lqg (the paper's gains); default: the config's, "
+        "offset-free-lqg",
+    )
+    parser.add_argument(
         "--json", action="store_true", help="print the summary as one JSON object instead of text"
     )
 
@@ -224,10 +247,16 @@ def run_command(args: argparse.Namespace) -> int:
         config.duration_s = args.duration
     if args.seed is not None:
         config.random_seed = args.seed
+    if args.plant is not None:
+        config.plant = args.plant
+    if args.controller is not None:
+        config.controller = args.controller
     try:
         validate_simulation_config(config)
     except ConfigError as error:
-        raise ConfigError(f"command line (--duration/--seed): {error}") from error
+        raise ConfigError(
+            f"command line (--duration/--seed/--plant/--controller): {error}"
+        ) from error
 
     def report_progress(simulated_s, duration_s):
         print(f"simulated {simulated_s:.0f} / {duration_s:.0f} s", file=sys.stderr, flush=True)

@@ -26,7 +26,7 @@ from maskless.systems.valve_map import effective_valve_current
 def add_paper_plant(
     builder: DiagramBuilder,
     model: IdentifiedModel,
-    camera_height_m: float,
+    camera_height_m: float | None,
     valve_starting_current_a: float,
     valve_saturation_current_a: float,
     name: str = "paper_plant",
@@ -37,7 +37,7 @@ def add_paper_plant(
 
         name: paper_plant
         input_ports:
-        - valve_current_a
+        - inlet_valve_current_a
         output_ports:
         - head_height_m
 
@@ -45,7 +45,8 @@ def add_paper_plant(
         builder: where the plant's system goes.
         model: the identified model in SI (see ``paper_identified_model``).
         camera_height_m: height of the camera whose frame the model's output is in, above the
-            table (m); converts distance to head height.
+            table (m); converts distance to head height. None for a model whose output is the
+            head height itself (one identified from a maskless recording).
         valve_starting_current_a: no flow below this current (A).
         valve_saturation_current_a: the current is clipped here (A).
         name: the system's name.
@@ -54,23 +55,27 @@ def add_paper_plant(
     """
     n = model.A.shape[0]
     x = MakeVectorVariable(n, "x")
-    current = Variable("valve_current_a")
+    current = Variable("inlet_valve_current_a")
     u = effective_valve_current(current, valve_starting_current_a, valve_saturation_current_a)
     next_x = model.A @ x + model.B[:, 0] * (u - model.operating_input_a)
-    distance = model.operating_output_m + (model.C @ x)[0]
+    model_output = model.operating_output_m + (model.C @ x)[0]
+    height = model_output if camera_height_m is None else camera_height_m - model_output
     return add_named_symbolic_system(
         builder,
         name,
-        inputs=[("valve_current_a", [current])],
-        outputs=[("head_height_m", [camera_height_m - distance])],
+        inputs=[("inlet_valve_current_a", [current])],
+        outputs=[("head_height_m", [height])],
         state=list(x),
         dynamics=list(next_x),
         time_period=model.sample_period_s,
     )
 
 
-def operating_head_height_m(model: IdentifiedModel, camera_height_m: float) -> float:
-    """Head height above the table at the model's operating point (m)."""
+def operating_head_height_m(model: IdentifiedModel, camera_height_m: float | None) -> float:
+    """Head height above the table at the model's operating point (m); ``camera_height_m`` as
+    in ``add_paper_plant``."""
+    if camera_height_m is None:
+        return model.operating_output_m
     return camera_height_m - model.operating_output_m
 
 

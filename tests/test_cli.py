@@ -9,7 +9,8 @@ def test_simulate_writes_recording_plot_and_json_summary(tmp_path, capsys):
     assert main(["simulate", "--duration", "6", "--seed", "2", "--out", str(out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["duration_s"] == 6.0 and summary["random_seed"] == 2
-    assert {"tracking", "estimation", "paper_model", "timing", "files"} <= summary.keys()
+    assert {"tracking", "estimation", "offset_free_lqg", "timing", "files"} <= summary.keys()
+    assert (summary["plant"], summary["controller"]) == ("pneumatic", "offset-free-lqg")
     assert (out / "run.png").stat().st_size > 10_000
     recording = read_recording(out / "run.mcap")
     assert not recording.truncated
@@ -21,6 +22,24 @@ def test_simulate_prints_a_human_summary(tmp_path, capsys):
     assert main(["simulate", "--duration", "3", "--out", str(tmp_path)]) == 0
     text = capsys.readouterr().out
     assert "Tracking" in text and "fused" in text and "run.mcap" in text
+
+
+def test_paper_flags_reproduce_the_paper_loop(tmp_path, capsys):
+    args = ["simulate", "--duration", "3", "--out", str(tmp_path), "--json"]
+    assert main([*args, "--plant", "paper", "--controller", "paper-lqg"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert (summary["plant"], summary["controller"]) == ("paper", "paper-lqg")
+    assert "paper_model" in summary
+
+
+def test_unknown_plant_and_missing_model_file_are_refused(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["simulate", "--plant", "pneumatik", "--out", str(out)]) == 2
+    assert "plant = 'pneumatik': expected one of pneumatic, paper" in capsys.readouterr().err
+    missing = tmp_path / "none.yaml"
+    assert main(["simulate", "--controller", f"offset-free-lqg:{missing}", "--out", str(out)]) == 2
+    assert "model file not found" in capsys.readouterr().err
+    assert not out.exists()
 
 
 def test_mistyped_config_is_refused_before_anything_runs(tmp_path, capsys):

@@ -5,7 +5,7 @@ import pytest
 from mcap.reader import make_reader
 
 from maskless.analysis.recording import read_recording, write_recording
-from maskless.diagrams.closed_loop import build_paper_closed_loop
+from maskless.diagrams.closed_loop import build_closed_loop
 from maskless.diagrams.simulate import recording_channels, run_closed_loop
 
 TOPICS = {
@@ -20,27 +20,61 @@ TOPICS = {
 }
 
 
-def test_diagram_names_its_subsystems_and_exports_named_outputs(config):
-    loop = build_paper_closed_loop(config, record=False)
+@pytest.mark.parametrize(
+    "plant, controller, diagram_name, own_systems",
+    [
+        (
+            "paper",
+            "paper-lqg",
+            "paper_paper_lqg_closed_loop",
+            {"paper_lqg", "valve_current_limits", "paper_plant"},
+        ),
+        (
+            "pneumatic",
+            "offset-free-lqg",
+            "pneumatic_offset_free_lqg_closed_loop",
+            {"offset_free_lqg", "pneumatic_plant"},
+        ),
+        (
+            "pneumatic",
+            "paper-lqg",
+            "pneumatic_paper_lqg_closed_loop",
+            {"paper_lqg", "pneumatic_plant", "outlet_valve_shut"},
+        ),
+        (
+            "paper",
+            "offset-free-lqg",
+            "paper_offset_free_lqg_closed_loop",
+            {"offset_free_lqg", "paper_plant"},
+        ),
+    ],
+)
+def test_diagram_names_its_subsystems_and_exports_named_outputs(
+    config, plant, controller, diagram_name, own_systems
+):
+    config.plant, config.controller = plant, controller
+    loop = build_closed_loop(config, record=False)
     diagram = loop.diagram
-    assert diagram.get_name() == "paper_closed_loop"
+    assert diagram.get_name() == diagram_name
     names = {system.get_name() for system in diagram.GetSystems()}
-    assert {
-        "reference",
-        "paper_lqg",
-        "valve_current_limits",
-        "paper_plant",
-        "kinect_v1",
-        "kinect_v1_filter",
-        "kinect_v2",
-        "kinect_v2_filter",
-        "fusion",
-    } <= names
+    assert (
+        own_systems
+        | {
+            "reference",
+            "kinect_v1",
+            "kinect_v1_filter",
+            "kinect_v2",
+            "kinect_v2_filter",
+            "fusion",
+        }
+        <= names
+    )
     sizes = {
         diagram.get_output_port(i).get_name(): diagram.get_output_port(i).size()
         for i in range(diagram.num_output_ports())
     }
-    assert sizes["head_height_m"] == 1 and sizes["valve_current_a"] == 1
+    assert sizes["head_height_m"] == 1 and sizes["inlet_valve_current_a"] == 1
+    assert sizes["outlet_valve_current_a"] == 1
     assert sizes["fusion.estimated_state"] == 2 and sizes["kinect_v2_filter.covariance"] == 4
     assert sizes["kinect_v1.distance_m"] == 1 and sizes["kinect_v1.valid"] == 1
 
@@ -59,8 +93,9 @@ def test_recording_read_back_with_the_mcap_reader(short_run, tmp_path):
             assert channel.message_encoding == "json"
             json.loads(message.data)
     assert topics == TOPICS and encodings == {"jsonschema"}
-    # The controller period 0.048 s and the 15 Hz frames set the message counts.
-    assert counts["/plant/head_position"] == pytest.approx(short_run.duration_s / 0.048, abs=2)
+    # The controller period (1/15 s) and the 15 Hz frames set the message counts.
+    period_s = short_run.closed_loop.model.sample_period_s
+    assert counts["/plant/head_position"] == pytest.approx(short_run.duration_s / period_s, abs=2)
     assert counts["/sensors/kinect_v1/measurement"] == pytest.approx(
         short_run.duration_s * 15, abs=2
     )

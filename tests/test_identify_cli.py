@@ -106,7 +106,8 @@ def test_lengths_that_differ_are_refused(tmp_path, capsys):
 
 def test_identify_reads_a_maskless_recording(tmp_path, capsys):
     out = tmp_path / "sim"
-    assert main(["simulate", "--duration", "60", "--out", str(out), "--json"]) == 0
+    paper = ["--plant", "paper", "--controller", "paper-lqg"]
+    assert main(["simulate", "--duration", "60", *paper, "--out", str(out), "--json"]) == 0
     capsys.readouterr()
     report = run_json(
         capsys,

@@ -22,7 +22,7 @@ def plant(model):
 
 def test_ports(plant):
     assert plant.get_name() == "paper_plant"
-    assert port_layout(plant) == ({"valve_current_a": 1}, {"head_height_m": 1})
+    assert port_layout(plant) == ({"inlet_valve_current_a": 1}, {"head_height_m": 1})
 
 
 def eq_25_step_mm(x_mm, current_ma):
@@ -40,7 +40,7 @@ def eq_25_step_mm(x_mm, current_ma):
 def test_one_step_matches_eq_25(plant, x_mm, current_ma):
     context = plant.CreateDefaultContext()
     context.SetDiscreteState(np.array(x_mm) / 1000.0)
-    plant.GetInputPort("valve_current_a").FixValue(context, [current_ma / 1000.0])
+    plant.GetInputPort("inlet_valve_current_a").FixValue(context, [current_ma / 1000.0])
     # Output: head height = camera height - (operating distance + C x), Eq. 26 with C = [1 0].
     expected_height = CAMERA_HEIGHT_M - (692.357479 + x_mm[0]) / 1000.0
     assert plant.GetOutputPort("head_height_m").Eval(context)[0] == pytest.approx(expected_height)
@@ -59,11 +59,11 @@ def test_default_state_is_the_operating_point(plant, model):
 
 def test_linearize_recovers_the_model_and_autodiff_works(plant, model):
     context = plant.CreateDefaultContext()
-    plant.GetInputPort("valve_current_a").FixValue(context, [model.operating_input_a])
+    plant.GetInputPort("inlet_valve_current_a").FixValue(context, [model.operating_input_a])
     linear = Linearize(
         plant,
         context,
-        input_port_index=plant.GetInputPort("valve_current_a").get_index(),
+        input_port_index=plant.GetInputPort("inlet_valve_current_a").get_index(),
         output_port_index=plant.GetOutputPort("head_height_m").get_index(),
     )
     np.testing.assert_allclose(linear.A(), model.A, atol=1e-15)

@@ -37,7 +37,7 @@ EXPECTED_FIELDS = {
     "/filters/kinect_v1/estimate": STATE_FIELDS,
     "/filters/kinect_v2/estimate": STATE_FIELDS,
     "/fusion/estimate": STATE_FIELDS,
-    "/controller/command": ("current_a",),
+    "/controller/command": ("current_a", "outlet_current_a"),
 }
 
 
@@ -90,7 +90,13 @@ def _make_channels(seed=0, scale=1):
             },
         )
     )
-    channels.append(Channel(COMMAND_TOPIC, times(n_fast, 10 * ms), {"current_a": floats(n_fast)}))
+    channels.append(
+        Channel(
+            COMMAND_TOPIC,
+            times(n_fast, 10 * ms),
+            {"current_a": floats(n_fast), "outlet_current_a": floats(n_fast)},
+        )
+    )
     return channels
 
 
@@ -212,7 +218,11 @@ def test_schemas_written_once_and_messages_in_time_order(tmp_path):
 def test_ties_keep_channel_order(tmp_path):
     t = np.array([0, 5, 5, 9], dtype=np.int64)
     channels = [
-        Channel(COMMAND_TOPIC, t, {"current_a": np.array([1.0, 2.0, 3.0, 4.0])}),
+        Channel(
+            COMMAND_TOPIC,
+            t,
+            {"current_a": np.array([1.0, 2.0, 3.0, 4.0]), "outlet_current_a": np.zeros(4)},
+        ),
         Channel(REFERENCE_TOPIC, t, {"reference_m": np.array([0.1, 0.2, 0.3, 0.4])}),
     ]
     path = tmp_path / "ties.mcap"
@@ -220,13 +230,13 @@ def test_ties_keep_channel_order(tmp_path):
     got = [(m.log_time, c.topic, json.loads(m.data)) for _, c, m in _upstream_messages(path)]
     cmd, ref = COMMAND_TOPIC, REFERENCE_TOPIC
     assert got == [
-        (0, cmd, {"current_a": 1.0}),
+        (0, cmd, {"current_a": 1.0, "outlet_current_a": 0.0}),
         (0, ref, {"reference_m": 0.1}),
-        (5, cmd, {"current_a": 2.0}),
-        (5, cmd, {"current_a": 3.0}),
+        (5, cmd, {"current_a": 2.0, "outlet_current_a": 0.0}),
+        (5, cmd, {"current_a": 3.0, "outlet_current_a": 0.0}),
         (5, ref, {"reference_m": 0.2}),
         (5, ref, {"reference_m": 0.3}),
-        (9, cmd, {"current_a": 4.0}),
+        (9, cmd, {"current_a": 4.0, "outlet_current_a": 0.0}),
         (9, ref, {"reference_m": 0.4}),
     ]
 
@@ -325,10 +335,18 @@ def test_unknown_and_missing_fields_raise(tmp_path):
 
 
 def test_decreasing_times_and_duplicate_topics_raise(tmp_path):
-    back = Channel(COMMAND_TOPIC, np.array([0, 2, 1], dtype=np.int64), {"current_a": np.zeros(3)})
+    back = Channel(
+        COMMAND_TOPIC,
+        np.array([0, 2, 1], dtype=np.int64),
+        {"current_a": np.zeros(3), "outlet_current_a": np.zeros(3)},
+    )
     with pytest.raises(ValueError, match=r"/controller/command.*non-decreasing"):
         write_recording(tmp_path / "bad.mcap", [back])
-    ok = Channel(COMMAND_TOPIC, np.array([0, 1], dtype=np.int64), {"current_a": np.zeros(2)})
+    ok = Channel(
+        COMMAND_TOPIC,
+        np.array([0, 1], dtype=np.int64),
+        {"current_a": np.zeros(2), "outlet_current_a": np.zeros(2)},
+    )
     with pytest.raises(ValueError, match=r"/controller/command.*more than once"):
         write_recording(tmp_path / "bad.mcap", [ok, ok])
 

@@ -1,0 +1,451 @@
+"""Gain, phase and delay margins of a discrete-time SISO loop closed by a dynamic controller.
+
+Both the plant and the controller are single-input, single-output discrete state-space models
+
+    x(k+1) = A x(k) + B v(k),   w(k) = C x(k) + D v(k),   z = exp(j ω Ts).
+
+Sign convention: the controller computes the plant input from the plant output *with its own
+sign*, u = K(z) y (an LQG controller's u = -K x̂ already carries the minus sign), and the loop is
+closed exactly as written. The loop transfer is therefore L(z) = -K(z) G(z), chosen so that the
+closed loop is the textbook negative-feedback loop: its poles are the zeros of 1 + L(z), the
+Nyquist critical point is -1, and the margins below read as usual. Functions that close or open
+the loop take ``sign`` (±1) for a controller written without its sign: u = sign · K(z) y.
+
+Everything here is pure numpy/scipy on arrays, so a margin check can run on an identified model
+without building a Drake diagram.
+"""
+
+import math
+import operator
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.optimize
+
+# The margin search grid starts this fraction of the Nyquist frequency above zero: crossings below
+# it (six decades under Nyquist) are outside any loop this toolkit closes.
+_LOWEST_FREQUENCY_FRACTION = 1e-6
+# An open-loop pole this close to z = ±1 makes L infinite there, so that band edge is not
+# evaluated (a numerical integrator at 1 + 1e-16 would otherwise give a meaningless margin).
+_EDGE_POLE_TOLERANCE = 1e-6
+# A refined phase crossing must land this close (rad) to -180°; otherwise brentq found the ±180°
+# branch cut of the angle, not a crossing.
+_PHASE_ROOT_TOLERANCE_RAD = 1e-6
+# Largest number of complex entries of one batch of (zI - A) matrices, to bound memory for
+# large models.
+_BATCH_ENTRIES = 2**22
+
+
+def _as_matrix(value, name: str, shape: tuple[int, int], meaning: str) -> np.ndarray:
+    """A finite, read-only float copy of ``value`` with the given shape, or a ValueError."""
+    array = np.array(value, dtype=float)
+    if array.shape != shape:
+        raise ValueError(f"{name} must have shape {shape} ({meaning}), got {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} must be finite")
+    array.setflags(write=False)
+    return array
+
+
+def _response_at(A, B, C, D, z: np.ndarray) -> np.ndarray:
+    """C (zI - A)^-1 B + D at each complex z (1-D), solving rather than inverting."""
+    n = A.shape[0]
+    if n == 0:
+        return np.full(z.shape, D[0, 0], dtype=complex)
+    response = np.empty(z.shape, dtype=complex)
+    batch = max(1, _BATCH_ENTRIES // (n * n))
+    identity = np.eye(n)
+    for start in range(0, z.size, batch):
+        zs = z[start : start + batch]
+        resolvent_B = np.linalg.solve(
+            zs[:, None, None] * identity - A, np.broadcast_to(B, (zs.size, n, 1))
+        )
+        response[start : start + batch] = (C @ resolvent_B)[:, 0, 0] + D[0, 0]
+    return response
+
+
+@dataclass(frozen=True, eq=False)  # eq=False: element-wise array equality has no single truth
+class DiscreteStateSpace:
+    """A SISO discrete-time model x(k+1) = A x + B v, w = C x + D v.
+
+    The arrays are stored as read-only float copies. A static gain has n = 0 states: A (0, 0),
+    B (0, 1), C (1, 0), D (1, 1); see ``static_gain``.
+
+    Attributes:
+        A: State matrix (n, n).
+        B: Input matrix (n, 1).
+        C: Output matrix (1, n).
+        D: Feedthrough (1, 1).
+        sample_period_s: Ts (s), positive.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    sample_period_s: float
+
+    def __post_init__(self):
+        A = np.asarray(self.A, dtype=float)
+        if A.ndim != 2 or A.shape[0] != A.shape[1]:
+            raise ValueError(f"A must be a square 2-D array (n, n), got shape {A.shape}")
+        n = A.shape[0]
+        object.__setattr__(self, "A", _as_matrix(A, "A", (n, n), "n x n"))
+        object.__setattr__(self, "B", _as_matrix(self.B, "B", (n, 1), "n x 1, single input"))
+        object.__setattr__(self, "C", _as_matrix(self.C, "C", (1, n), "1 x n, single output"))
+        object.__setattr__(self, "D", _as_matrix(self.D, "D", (1, 1), "SISO feedthrough"))
+        period = self.sample_period_s
+        if isinstance(period, bool) or not isinstance(period, int | float | np.floating):
+            raise ValueError(f"sample_period_s must be a number of seconds, got {period!r}")
+        if not (math.isfinite(period) and period > 0.0):
+            raise ValueError(f"sample_period_s must be positive and finite, got {period}")
+        object.__setattr__(self, "sample_period_s", float(period))
+
+    @classmethod
+    def static_gain(cls, gain: float, sample_period_s: float) -> "DiscreteStateSpace":
+        """A memoryless gain w = gain · v (no states), e.g. a proportional controller."""
+        return cls(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), [[gain]], sample_period_s)
+
+    @property
+    def order(self) -> int:
+        """Number of states n."""
+        return self.A.shape[0]
+
+    @property
+    def nyquist_rad_s(self) -> float:
+        """π / Ts (rad/s)."""
+        return math.pi / self.sample_period_s
+
+    def frequency_response(self, omega_rad_s) -> np.ndarray:
+        """C (zI - A)^-1 B + D at z = exp(j ω Ts).
+
+        Args:
+            omega_rad_s: Frequencies ω (rad/s), any shape, finite.
+
+        Returns:
+            Complex array of the same shape as ``omega_rad_s``.
+
+        Raises:
+            ValueError: if a frequency is not finite.
+            numpy.linalg.LinAlgError: if some z is a pole of the model (on the unit circle).
+        """
+        omega = np.asarray(omega_rad_s, dtype=float)
+        if not np.all(np.isfinite(omega)):
+            raise ValueError("omega_rad_s must be finite")
+        z = np.exp(1j * omega.ravel() * self.sample_period_s)
+        return _response_at(self.A, self.B, self.C, self.D, z).reshape(omega.shape)
+
+    def poles(self) -> np.ndarray:
+        """Eigenvalues of A (complex, n of them)."""
+        return np.linalg.eigvals(self.A).astype(complex)
+
+
+def _same_period(first: DiscreteStateSpace, second: DiscreteStateSpace, names: str) -> None:
+    if not math.isclose(first.sample_period_s, second.sample_period_s, rel_tol=1e-9):
+        raise ValueError(
+            f"{names} must share one sample period, got {first.sample_period_s} s and "
+            f"{second.sample_period_s} s"
+        )
+
+
+def _check_sign(sign) -> float:
+    if sign not in (1, -1):
+        raise ValueError(f"sign must be +1 or -1, got {sign!r}")
+    return float(sign)
+
+
+def _scaled(model: DiscreteStateSpace, factor: float) -> DiscreteStateSpace:
+    """factor · model (output scaled)."""
+    return DiscreteStateSpace(
+        model.A, model.B, factor * model.C, factor * model.D, model.sample_period_s
+    )
+
+
+def series(first: DiscreteStateSpace, second: DiscreteStateSpace) -> DiscreteStateSpace:
+    """The cascade whose input drives ``first`` and whose output is ``second``'s.
+
+    The transfer function is second(z) · first(z); the states are [x_first, x_second].
+
+    Args:
+        first: Model fed by the cascade input.
+        second: Model fed by ``first``'s output.
+
+    Raises:
+        ValueError: if the sample periods differ.
+    """
+    _same_period(first, second, "first and second")
+    n1, n2 = first.order, second.order
+    A = np.block([[first.A, np.zeros((n1, n2))], [second.B @ first.C, second.A]])
+    B = np.vstack([first.B, second.B @ first.D])
+    C = np.hstack([second.D @ first.C, second.C])
+    return DiscreteStateSpace(A, B, C, second.D @ first.D, first.sample_period_s)
+
+
+def loop_transfer(
+    plant: DiscreteStateSpace, controller: DiscreteStateSpace, sign: int = 1
+) -> DiscreteStateSpace:
+    """The loop transfer L(z) = -sign · K(z) G(z), broken at the plant input.
+
+    With u = sign · K(z) y, the closed loop's poles are the zeros of 1 + L(z) (negative
+    feedback around L), so ``discrete_margins(loop_transfer(plant, controller))`` gives the
+    textbook margins.
+
+    Args:
+        plant: G, from u to y.
+        controller: K, from y to the controller output.
+        sign: +1 when the controller output is applied as u (it carries its own minus sign, as
+            an LQG controller u = -K x̂ does); -1 when u = -K(z) y.
+
+    Raises:
+        ValueError: if the sample periods differ or ``sign`` is not ±1.
+    """
+    _same_period(plant, controller, "plant and controller")
+    return series(plant, _scaled(controller, -_check_sign(sign)))
+
+
+def _closed_loop_matrix(
+    plant: DiscreteStateSpace, controller: DiscreteStateSpace, sign: float
+) -> np.ndarray:
+    """The state matrix of [x_plant; x_controller] with u = sign · (Cc xc + Dc y), y = C x + D u."""
+    G, K = plant, controller
+    # The feedthroughs form an algebraic loop u = sign Dc (C x + D u) + ...; it is well posed only
+    # when 1 - sign Dc D is invertible.
+    well_posed = 1.0 - sign * K.D[0, 0] * G.D[0, 0]
+    if abs(well_posed) < 1e-12:
+        raise ValueError(
+            "plant and controller form an ill-posed algebraic loop: 1 - sign * D_controller * "
+            f"D_plant = {well_posed:g}"
+        )
+    # u = u_x x + u_c xc after solving the algebraic loop.
+    u_x = sign * K.D @ G.C / well_posed
+    u_c = sign * K.C / well_posed
+    y_x = G.C + G.D @ u_x
+    y_c = G.D @ u_c
+    return np.block([[G.A + G.B @ u_x, G.B @ u_c], [K.B @ y_x, K.A + K.B @ y_c]])
+
+
+def feedback_loop_poles(
+    plant: DiscreteStateSpace, controller: DiscreteStateSpace, sign: int = 1
+) -> np.ndarray:
+    """Closed-loop poles of the plant with u = sign · K(z) y.
+
+    The default ``sign=+1`` closes the loop exactly as the controller is written (the controller
+    carries its own minus sign); these are the zeros of 1 + ``loop_transfer(plant, controller,
+    sign)``, including any modes hidden from the loop transfer.
+
+    Args:
+        plant: G, from u to y.
+        controller: K, from y to the controller output.
+        sign: ±1, see ``loop_transfer``.
+
+    Returns:
+        The n_plant + n_controller eigenvalues of the closed-loop state matrix (complex).
+
+    Raises:
+        ValueError: if the sample periods differ, ``sign`` is not ±1, or the feedthroughs make
+            the loop ill-posed (1 - sign · D_controller · D_plant = 0).
+    """
+    _same_period(plant, controller, "plant and controller")
+    matrix = _closed_loop_matrix(plant, controller, _check_sign(sign))
+    return np.linalg.eigvals(matrix).astype(complex)
+
+
+def added_delay_samples_loop(loop: DiscreteStateSpace, delay_samples: int) -> DiscreteStateSpace:
+    """``loop`` followed by a pure delay z^-d, for latency robustness checks.
+
+    The delay is a shift register of d states after the output, so the result has n + d states
+    and transfer function z^-d · loop(z). It applies equally to a plant (to model actuation or
+    sensing latency before closing the loop) or to a loop transfer.
+
+    Args:
+        loop: The model to delay.
+        delay_samples: d >= 0, whole samples.
+
+    Raises:
+        ValueError: if ``delay_samples`` is not a non-negative integer.
+    """
+    try:
+        d = operator.index(delay_samples)
+    except TypeError:
+        raise ValueError(
+            f"delay_samples must be a non-negative integer, got {delay_samples!r}"
+        ) from None
+    if isinstance(delay_samples, bool) or d < 0:
+        raise ValueError(f"delay_samples must be a non-negative integer, got {delay_samples!r}")
+    if d == 0:
+        return loop
+    n = loop.order
+    first = np.zeros((d, 1))
+    first[0, 0] = 1.0
+    shift = np.eye(d, k=-1)
+    A = np.block([[loop.A, np.zeros((n, d))], [first @ loop.C, shift]])
+    B = np.vstack([loop.B, first @ loop.D])
+    C = np.zeros((1, n + d))
+    C[0, -1] = 1.0
+    return DiscreteStateSpace(A, B, C, np.zeros((1, 1)), loop.sample_period_s)
+
+
+def stable(poles, tol: float = 0.0) -> bool:
+    """True when every pole lies strictly inside the circle of radius 1 - tol.
+
+    Args:
+        poles: Complex poles, 1-D (an empty set is stable).
+        tol: Stability margin on the radius, 0 <= tol < 1.
+
+    Raises:
+        ValueError: if ``poles`` is not 1-D and finite, or ``tol`` is outside [0, 1).
+    """
+    poles = np.asarray(poles)
+    if poles.ndim != 1:
+        raise ValueError(f"poles must be a 1-D array (n,), got shape {poles.shape}")
+    if not np.all(np.isfinite(poles)):
+        raise ValueError("poles must be finite")
+    if not (0.0 <= tol < 1.0):
+        raise ValueError(f"tol must lie in [0, 1), got {tol}")
+    return bool(np.all(np.abs(poles) < 1.0 - tol))
+
+
+@dataclass(frozen=True)
+class Margins:
+    """Classic stability margins of a loop transfer L (negative feedback around L).
+
+    Attributes:
+        gain_margin: Smallest 1/|L| over the -180° phase crossings (ratio); inf when the phase
+            never reaches -180°. A value below 1 means a gain *reduction* reaches -1 (a
+            conditionally stable loop).
+        gain_margin_db: 20 log10(gain_margin) (dB); inf when gain_margin is.
+        phase_crossover_rad_s: Frequency of that crossing (rad/s); nan when none.
+        phase_margin_deg: Smallest 180° + ∠L over the |L| = 1 crossings, wrapped to (-180, 180]
+            (deg); inf when |L| never crosses 1.
+        gain_crossover_rad_s: Frequency of that crossing (rad/s); nan when none.
+        delay_margin_s: Smallest extra pure delay that brings a gain crossing onto -1 (s): the
+            phase margin over the crossover frequency when there is one crossing with positive
+            phase margin; otherwise the smallest (margin mod 360°) / frequency over all crossings.
+            inf when none. Meaningful, like the others, when the nominal closed loop is stable.
+    """
+
+    gain_margin: float
+    gain_margin_db: float
+    phase_crossover_rad_s: float
+    phase_margin_deg: float
+    gain_crossover_rad_s: float
+    delay_margin_s: float
+
+    def as_dict(self) -> dict[str, float | str | None]:
+        """The margins as JSON-safe values: finite floats as they are, ±inf as the strings
+        "inf" / "-inf" (meaning "no crossing, unbounded"), nan as None (no such frequency)."""
+        return {name: _json_safe(value) for name, value in vars(self).items()}
+
+
+def _json_safe(value: float) -> float | str | None:
+    if math.isnan(value):
+        return None
+    if math.isinf(value):
+        return "inf" if value > 0 else "-inf"
+    return float(value)
+
+
+def _band_edge_response(loop: DiscreteStateSpace, z: float) -> float | None:
+    """L at z = ±1 (real there), or None when an open-loop pole sits on that edge."""
+    if loop.order and np.min(np.abs(loop.poles() - z)) < _EDGE_POLE_TOLERANCE:
+        return None
+    return float(_response_at(loop.A, loop.B, loop.C, loop.D, np.array([z + 0j]))[0].real)
+
+
+def _refined_roots(function, omega: np.ndarray, values: np.ndarray, ok: np.ndarray) -> list:
+    """Roots of ``function`` on the grid: exact zeros, and brentq in each interval whose ends
+    change sign and where ``ok`` (per interval) allows it."""
+    roots = list(omega[values == 0.0])
+    changes = np.flatnonzero((values[:-1] * values[1:] < 0.0) & ok)
+    for i in changes:
+        roots.append(
+            scipy.optimize.brentq(function, omega[i], omega[i + 1], xtol=1e-12 * omega[-1])
+        )
+    return roots
+
+
+def discrete_margins(loop: DiscreteStateSpace, n_frequencies: int = 4000) -> Margins:
+    """Gain, phase and delay margins of L(exp(j ω Ts)) for 0 <= ω <= π/Ts.
+
+    Crossings are bracketed on a log grid of ``n_frequencies`` points from 1e-6 · π/Ts up to and
+    including π/Ts, then refined with brentq. L is real at the band edges z = 1 and z = -1, so a
+    negative real value there is a phase crossing too (at ω = 0 or π/Ts); the z = 1 edge is
+    skipped when L has a pole there (an integrator).
+
+    Args:
+        loop: The loop transfer L, closed with negative feedback (see ``loop_transfer``).
+        n_frequencies: Grid points, at least 16; the grid must resolve the phase, so raise it for
+            lightly damped resonances.
+
+    Returns:
+        The margins; see ``Margins`` for the no-crossing values.
+
+    Raises:
+        ValueError: if ``n_frequencies`` is not an integer >= 16.
+    """
+    if isinstance(n_frequencies, bool) or not isinstance(n_frequencies, int | np.integer):
+        raise ValueError(f"n_frequencies must be an integer >= 16, got {n_frequencies!r}")
+    if n_frequencies < 16:
+        raise ValueError(f"n_frequencies must be an integer >= 16, got {n_frequencies}")
+    nyquist = loop.nyquist_rad_s
+    at_nyquist = _band_edge_response(loop, -1.0)
+    top = nyquist if at_nyquist is not None else nyquist * (1.0 - _EDGE_POLE_TOLERANCE)
+    omega = np.geomspace(_LOWEST_FREQUENCY_FRACTION * nyquist, top, int(n_frequencies))
+    response = loop.frequency_response(omega)
+    phase_values = np.angle(-response)
+    if at_nyquist is not None:
+        # exp(jπ) is -1 + 1.2e-16j; L(-1) is real in truth, so its phase is 0° or 180° exactly.
+        response[-1] = at_nyquist
+        phase_values[-1] = 0.0 if at_nyquist < 0.0 else math.pi
+
+    def distance_to_minus_180(w):  # angle(-L) is 0 exactly where ∠L = -180° (mod 360°)
+        return np.angle(-loop.frequency_response(w))
+
+    def magnitude_minus_one(w):
+        return np.abs(loop.frequency_response(w)) - 1.0
+
+    # angle(-L) also changes sign where it jumps across ±180° (∠L passes 0°); those intervals jump
+    # by about 2π and are excluded.
+    not_a_wrap = np.abs(np.diff(phase_values)) < math.pi
+    phase_crossings = []
+    for w in _refined_roots(distance_to_minus_180, omega, phase_values, not_a_wrap):
+        value = complex(loop.frequency_response(w))
+        # L = 0 (a zero on the unit circle) has no phase; it is no crossing.
+        if abs(value) > 0.0 and abs(np.angle(-value)) < _PHASE_ROOT_TOLERANCE_RAD:
+            phase_crossings.append((float(w), abs(value)))
+    dc = _band_edge_response(loop, 1.0)
+    if dc is not None and dc < 0.0:
+        phase_crossings.append((0.0, -dc))
+
+    gain_roots = _refined_roots(
+        magnitude_minus_one, omega, np.abs(response) - 1.0, np.ones(omega.size - 1, dtype=bool)
+    )
+
+    if phase_crossings:
+        phase_crossover, crossing_magnitude = max(phase_crossings, key=lambda c: c[1])
+        gain_margin = 1.0 / crossing_magnitude
+        gain_margin_db = 20.0 * math.log10(gain_margin)
+    else:
+        phase_crossover, gain_margin, gain_margin_db = math.nan, math.inf, math.inf
+
+    if gain_roots:
+        gain_crossings = np.array(gain_roots)
+        # angle(-L) is 180° + ∠L already wrapped to (-180°, 180°].
+        margins_deg = np.degrees(np.angle(-loop.frequency_response(gain_crossings)))
+        best = int(np.argmin(margins_deg))
+        phase_margin_deg = float(margins_deg[best])
+        gain_crossover = float(gain_crossings[best])
+        # A delay τ adds lag ωτ at every crossing; the first crossing it rotates onto -1 sets τ.
+        delays = np.radians(np.mod(margins_deg, 360.0)) / gain_crossings
+        delay_margin_s = float(np.min(delays))
+    else:
+        phase_margin_deg, gain_crossover, delay_margin_s = math.inf, math.nan, math.inf
+
+    return Margins(
+        gain_margin=float(gain_margin),
+        gain_margin_db=float(gain_margin_db),
+        phase_crossover_rad_s=float(phase_crossover),
+        phase_margin_deg=phase_margin_deg,
+        gain_crossover_rad_s=gain_crossover,
+        delay_margin_s=delay_margin_s,
+    )

@@ -1,0 +1,394 @@
+"""Open-loop excitation signals for identifying the valve-current-to-head-pitch dynamics.
+
+The paper (Sec. IV-B, "Input Signal Design") drives the PVQ valve with a periodic, persistently
+exciting uniform white noise whose amplitudes are clipped to the valve's range ([0, 165] mA), and
+checks its spectrum for as small a crest factor as possible. The reasons carry over to any design:
+
+- Persistent excitation: the input's spectrum must cover the band the model has to be accurate in,
+  otherwise the prediction-error estimate is not identifiable there.
+- Low crest factor (peak deviation over RMS deviation): the valve current is bounded, so a signal
+  that puts more power into the plant for the same peak gives a better signal-to-noise ratio
+  before clipping distorts it.
+
+Three designs are offered, all returned as an :class:`ExcitationSignal` of uniformly sampled
+currents in amperes:
+
+- ``uniform``: i.i.d. uniform white noise on [offset - A, offset + A] (paper Eq. 22), whose
+  standard deviation is A / sqrt(3) (Eq. 23, :func:`theoretical_uniform_std`).
+- ``prbs``: a maximum-length binary sequence (crest factor about 1, flat spectrum over a period).
+- ``multisine``: equal-amplitude sines on the period's frequency grid inside a chosen band, with
+  Schroeder phases for a low crest factor.
+
+The design functions are pure numpy/scipy; :func:`add_excitation_source` turns a designed signal
+into a Drake ``TrajectorySource`` for simulation.
+"""
+
+import math
+import numbers
+from dataclasses import dataclass, replace
+
+import numpy as np
+from pydrake.systems.framework import DiagramBuilder, OutputPort
+from pydrake.systems.primitives import TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
+from scipy.signal import max_len_seq
+
+# scipy.signal.max_len_seq ships feedback taps for registers of 2 to 32 bits.
+_MIN_PRBS_REGISTER_BITS = 2
+_MAX_PRBS_REGISTER_BITS = 32
+
+# The source holds the last sample until this time (s), far beyond any experiment.
+_HOLD_UNTIL_S = 1e9
+
+# Tolerance when turning duration / period into a sample count, so 0.3 s / 0.1 s gives 3, not 2.
+_SAMPLE_COUNT_RTOL = 1e-9
+
+MULTISINE_PHASES = ("schroeder", "random", "zero")
+
+
+@dataclass(frozen=True, eq=False)  # eq=False: element-wise array comparison has no single truth.
+class ExcitationSignal:
+    """A uniformly sampled excitation signal.
+
+    The arrays are copied and made read-only, so the frozen dataclass is really immutable.
+
+    Attributes:
+        times_s: Sample instants (s), starting at 0 with a uniform step ``sample_period_s``.
+        values: Signal value at each instant (A for a valve current), same length as ``times_s``.
+        sample_period_s: Sample period Ts (s).
+        kind: Name of the design that produced the signal ("uniform", "prbs", "multisine", ...).
+    """
+
+    times_s: np.ndarray
+    values: np.ndarray
+    sample_period_s: float
+    kind: str
+
+    def __post_init__(self):
+        _require_positive_finite("sample_period_s", self.sample_period_s)
+        times_s = np.array(self.times_s, dtype=float)
+        values = np.array(self.values, dtype=float)
+        if times_s.ndim != 1 or values.ndim != 1:
+            raise ValueError(
+                f"times_s and values must be 1-D arrays; got shapes {times_s.shape} and "
+                f"{values.shape}"
+            )
+        if times_s.shape != values.shape:
+            raise ValueError(
+                f"times_s and values must have the same length; got {times_s.size} and "
+                f"{values.size}"
+            )
+        if times_s.size < 2:
+            raise ValueError(f"a signal needs at least 2 samples; got {times_s.size}")
+        if not np.all(np.isfinite(values)):
+            raise ValueError("values must all be finite")
+        expected_times_s = np.arange(times_s.size) * self.sample_period_s
+        if not np.allclose(times_s, expected_times_s, rtol=0.0, atol=1e-9 * self.sample_period_s):
+            raise ValueError(
+                f"times_s must start at 0 with uniform step sample_period_s = "
+                f"{self.sample_period_s} s"
+            )
+        times_s.flags.writeable = False
+        values.flags.writeable = False
+        object.__setattr__(self, "times_s", times_s)
+        object.__setattr__(self, "values", values)
+        object.__setattr__(self, "sample_period_s", float(self.sample_period_s))
+
+    @property
+    def num_samples(self) -> int:
+        """Number of samples N."""
+        return int(self.values.size)
+
+    @property
+    def duration_s(self) -> float:
+        """Span covered by the samples, N * Ts (s); each sample is held for one period."""
+        return self.num_samples * self.sample_period_s
+
+    def std(self) -> float:
+        """Population standard deviation of the values (ddof = 0), in the values' unit.
+
+        Compare with :func:`theoretical_uniform_std` for a uniform design (paper Eq. 23).
+        """
+        return float(np.std(self.values))
+
+    def crest_factor(self) -> float:
+        """Peak |x - mean| over RMS(x - mean), dimensionless.
+
+        Measured about the sample mean, not about zero, because the valve current carries an
+        offset (the operating point) that is not excitation. A square wave gives 1, a sine sqrt(2).
+
+        Raises:
+            ValueError: If the signal is constant (zero RMS deviation).
+        """
+        deviation = self.values - np.mean(self.values)
+        rms = math.sqrt(float(np.mean(deviation**2)))
+        if rms == 0.0:
+            raise ValueError("crest factor is undefined for a constant signal (zero RMS)")
+        return float(np.max(np.abs(deviation))) / rms
+
+
+def theoretical_uniform_std(amplitude):
+    """Standard deviation A / sqrt(3) of a uniform distribution on [-A, A] (paper Eq. 23).
+
+    Args:
+        amplitude: Half-width A of the distribution (any unit; the result has the same unit).
+    """
+    _require_positive_finite("amplitude", amplitude)
+    return amplitude / math.sqrt(3.0)
+
+
+def uniform_white_noise(
+    amplitude, duration_s, sample_period_s, seed, offset=0.0
+) -> ExcitationSignal:
+    """I.i.d. uniform white noise on [offset - A, offset + A] (paper Eq. 22).
+
+    The density is 1 / (2A) on the interval, so the standard deviation is A / sqrt(3) (Eq. 23).
+    The paper used a long-cycle generator; numpy's ``default_rng`` (PCG64, period 2**128) plays
+    that role, seeded so a record can be regenerated exactly.
+
+    Args:
+        amplitude: Half-width A of the distribution (A, amperes for a valve current).
+        duration_s: Signal length (s); N = floor(duration_s / sample_period_s) samples.
+        sample_period_s: Sample period Ts (s).
+        seed: Non-negative integer seed of ``np.random.default_rng``.
+        offset: Centre of the distribution, the operating point (A).
+    """
+    num_samples = _validated_common(amplitude, duration_s, sample_period_s, seed, offset)
+    rng = np.random.default_rng(seed)
+    values = rng.uniform(offset - amplitude, offset + amplitude, size=num_samples)
+    # uniform() draws from [low, high); a clip guards the closed support against rounding.
+    values = np.clip(values, offset - amplitude, offset + amplitude)
+    return _signal(values, sample_period_s, "uniform")
+
+
+def prbs(
+    amplitude, duration_s, sample_period_s, seed, offset=0.0, clock_periods=1
+) -> ExcitationSignal:
+    """A maximum-length pseudo-random binary sequence with values offset +/- A.
+
+    The register length n is the smallest (at least 2, at most 32) whose period 2**n - 1 bits
+    covers the duration, so the signal is one period or a prefix of one; beyond 32 bits the
+    sequence repeats. Over a full period an MLS has one more +1 than -1 and a two-valued circular
+    autocorrelation, hence a flat spectrum, and its crest factor is about 1 (the lowest possible).
+
+    Args:
+        amplitude: Deviation A of each level from the offset (A).
+        duration_s: Signal length (s); N = floor(duration_s / sample_period_s) samples.
+        sample_period_s: Sample period Ts (s).
+        seed: Non-negative integer; chooses the register's non-zero initial state, which shifts
+            the sequence circularly.
+        offset: Mid level, the operating point (A).
+        clock_periods: Samples each bit is held (positive integer); larger values move the
+            excitation power to lower frequencies (first spectral null at 1 / (clock_periods Ts)).
+    """
+    num_samples = _validated_common(amplitude, duration_s, sample_period_s, seed, offset)
+    _require_positive_int("clock_periods", clock_periods)
+    num_bits = -(-num_samples // clock_periods)  # ceil: the last bit may be cut short
+    register_bits = _MIN_PRBS_REGISTER_BITS
+    while 2**register_bits - 1 < num_bits and register_bits < _MAX_PRBS_REGISTER_BITS:
+        register_bits += 1
+    # Draw the initial state as an integer in [1, 2**n - 1], so it is never the all-zero state
+    # (which the register cannot leave).
+    rng = np.random.default_rng(seed)
+    state_int = int(rng.integers(1, 2**register_bits))
+    state = np.array([(state_int >> i) & 1 for i in range(register_bits)], dtype=np.int8)
+    bits, _ = max_len_seq(register_bits, state=state, length=min(num_bits, 2**register_bits - 1))
+    bits = np.resize(bits, num_bits)  # repeats the period in the (impractical) > 32-bit case
+    levels = np.repeat(2.0 * bits.astype(float) - 1.0, clock_periods)[:num_samples]
+    return _signal(offset + amplitude * levels, sample_period_s, "prbs")
+
+
+def multisine(
+    amplitude,
+    duration_s,
+    sample_period_s,
+    seed,
+    offset=0.0,
+    frequency_band_hz=None,
+    phases="schroeder",
+) -> ExcitationSignal:
+    """A sum of equal-amplitude sines on the signal period's frequency grid.
+
+    The N samples span one period T = N Ts, and every sine sits on the grid k / T (k = 1, 2, ...)
+    inside the band, so the signal is exactly periodic: repeated, it has no leakage and its
+    spectrum is zero outside the band.
+
+    Schroeder phases phi_k = -pi k (k - 1) / K (k = 1..K, equal amplitudes) are a closed-form
+    choice that spreads the sines' peaks in time, giving a crest factor of about 1.5 to 1.9 (a
+    single sine has sqrt(2)) rather than the sqrt(2K) of zero phases. The result is scaled so
+    max |x - offset| equals the amplitude.
+
+    Args:
+        amplitude: Peak deviation from the offset (A).
+        duration_s: Signal length, one period (s); N = floor(duration_s / sample_period_s).
+        sample_period_s: Sample period Ts (s).
+        seed: Non-negative integer; used only when ``phases == "random"`` (the Schroeder and zero
+            phases are deterministic and ignore it).
+        offset: Operating point the sines oscillate about (A).
+        frequency_band_hz: (f_lo, f_hi) in Hz with 0 < f_lo <= f_hi < 1 / (2 Ts); grid lines in
+            the closed band are excited. None excites every grid line below the Nyquist frequency.
+        phases: "schroeder" (low crest factor), "random" (uniform on [0, 2 pi), seeded) or
+            "zero" (all phases 0, the worst case, for comparison).
+    """
+    num_samples = _validated_common(amplitude, duration_s, sample_period_s, seed, offset)
+    if phases not in MULTISINE_PHASES:
+        raise ValueError(f"phases must be one of {MULTISINE_PHASES}; got {phases!r}")
+    period_s = num_samples * sample_period_s
+    nyquist_hz = 0.5 / sample_period_s
+    # Grid lines strictly between 0 Hz and Nyquist: a sine at Nyquist would sample as +/-cos only.
+    harmonics = np.arange(1, (num_samples + 1) // 2)
+    if frequency_band_hz is None:
+        selected = harmonics
+    else:
+        f_lo, f_hi = _validated_band(frequency_band_hz, nyquist_hz)
+        grid_hz = harmonics / period_s
+        tolerance_hz = 1e-9 / period_s  # band edges that fall on a grid line are included
+        selected = harmonics[(grid_hz >= f_lo - tolerance_hz) & (grid_hz <= f_hi + tolerance_hz)]
+    if selected.size == 0:
+        raise ValueError(
+            f"frequency_band_hz {frequency_band_hz} contains no line of the grid k / T with "
+            f"spacing {1.0 / period_s} Hz; widen the band or lengthen duration_s"
+        )
+    count = selected.size
+    if phases == "schroeder":
+        index = np.arange(1, count + 1)
+        phase = -np.pi * index * (index - 1) / count
+    elif phases == "random":
+        phase = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, size=count)
+    else:
+        phase = np.zeros(count)
+    sample_index = np.arange(num_samples)
+    # Integer harmonic times sample index, reduced mod N, keeps the phase argument exact.
+    cycles = np.outer(sample_index, selected) % num_samples / num_samples
+    waveform = np.cos(2.0 * np.pi * cycles + phase).sum(axis=1)
+    waveform *= amplitude / np.max(np.abs(waveform))
+    return _signal(offset + waveform, sample_period_s, "multisine")
+
+
+_DESIGNS = {"multisine": multisine, "prbs": prbs, "uniform": uniform_white_noise}
+
+
+def excitation_signal(kind, **kwargs) -> ExcitationSignal:
+    """Designs a signal by name, e.g. from a configuration file.
+
+    Args:
+        kind: "uniform", "prbs" or "multisine".
+        **kwargs: Arguments of :func:`uniform_white_noise`, :func:`prbs` or :func:`multisine`.
+    """
+    if kind not in _DESIGNS:
+        raise ValueError(f"kind must be one of {sorted(_DESIGNS)}; got {kind!r}")
+    return _DESIGNS[kind](**kwargs)
+
+
+def clip_to_valve_range(signal, low, high) -> ExcitationSignal:
+    """A copy of ``signal`` with values clipped to [low, high].
+
+    The paper clipped its uniform noise to the valve's [0, 165] mA. Clipping flattens the
+    distribution and adds harmonics, so check :func:`clipped_fraction` before an experiment.
+
+    Args:
+        signal: An :class:`ExcitationSignal`.
+        low: Smallest allowed value (A).
+        high: Largest allowed value (A), greater than ``low``.
+    """
+    _validated_range(low, high)
+    return replace(signal, values=np.clip(signal.values, low, high))
+
+
+def clipped_fraction(signal, low, high) -> float:
+    """Fraction of samples of ``signal`` outside [low, high], i.e. changed by clipping (0 to 1).
+
+    Args:
+        signal: An :class:`ExcitationSignal`.
+        low: Smallest allowed value (A).
+        high: Largest allowed value (A), greater than ``low``.
+    """
+    _validated_range(low, high)
+    outside = (signal.values < low) | (signal.values > high)
+    return float(np.mean(outside))
+
+
+def add_excitation_source(
+    builder: DiagramBuilder, signal: ExcitationSignal, name="excitation"
+) -> OutputPort:
+    """Adds a Drake source that replays ``signal`` as a zero-order hold and returns its output.
+
+    Sample i is output on [t_i, t_i + Ts); the last sample is held until t = 1e9 s and beyond, so
+    a simulation longer than the signal sees a constant input rather than a jump.
+
+    Args:
+        builder: The DiagramBuilder to add the ``TrajectorySource`` to.
+        signal: The :class:`ExcitationSignal` to replay (values in A).
+        name: Name of the added system (unique within the builder).
+
+    Returns:
+        The source's 1-element output port (the valve current, A).
+    """
+    if not isinstance(signal, ExcitationSignal):
+        raise ValueError(f"signal must be an ExcitationSignal; got {type(signal).__name__}")
+    breaks_s = np.append(signal.times_s, _HOLD_UNTIL_S)
+    samples = np.append(signal.values, signal.values[-1]).reshape(1, -1)
+    trajectory = PiecewisePolynomial.ZeroOrderHold(breaks_s, samples)
+    source = builder.AddNamedSystem(name, TrajectorySource(trajectory))
+    return source.get_output_port()
+
+
+def _signal(values, sample_period_s, kind):
+    times_s = np.arange(values.size) * sample_period_s
+    return ExcitationSignal(times_s, values, sample_period_s, kind)
+
+
+def _validated_common(amplitude, duration_s, sample_period_s, seed, offset):
+    """Checks the arguments every design shares and returns the sample count N."""
+    _require_positive_finite("amplitude", amplitude)
+    _require_positive_finite("sample_period_s", sample_period_s)
+    _require_finite("duration_s", duration_s)
+    _require_finite("offset", offset)
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer; got {seed!r}")
+    ratio = duration_s / sample_period_s
+    num_samples = math.floor(ratio * (1.0 + _SAMPLE_COUNT_RTOL))
+    if num_samples < 2:
+        raise ValueError(
+            f"duration_s must be at least 2 sample periods ({2 * sample_period_s} s); "
+            f"got {duration_s}"
+        )
+    return num_samples
+
+
+def _validated_band(frequency_band_hz, nyquist_hz):
+    try:
+        f_lo, f_hi = (float(f) for f in frequency_band_hz)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"frequency_band_hz must be a pair (f_lo, f_hi) in Hz; got {frequency_band_hz!r}"
+        ) from None
+    if not (0.0 < f_lo <= f_hi < nyquist_hz):
+        raise ValueError(
+            f"frequency_band_hz must satisfy 0 < f_lo <= f_hi < Nyquist = {nyquist_hz} Hz; "
+            f"got {frequency_band_hz!r}"
+        )
+    return f_lo, f_hi
+
+
+def _validated_range(low, high):
+    _require_finite("low", low)
+    _require_finite("high", high)
+    if not low < high:
+        raise ValueError(f"low must be less than high; got low = {low}, high = {high}")
+
+
+def _require_finite(name, value):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number; got {value!r}")
+
+
+def _require_positive_finite(name, value):
+    _require_finite(name, value)
+    if value <= 0:
+        raise ValueError(f"{name} must be positive; got {value!r}")
+
+
+def _require_positive_int(name, value):
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+        raise ValueError(f"{name} must be a positive integer; got {value!r}")

@@ -1,0 +1,138 @@
+"""Split-range allocation: one lift command to the inlet and outlet valve currents.
+
+The controller commands a *lift* w (m): the lift the plant would settle at if the command were
+held. ``SplitRangeAllocation`` turns it into two coil currents through the inverse of the plant's
+static map (the Hammerstein inverse the paper proposes in Sec. VI): above the lift the bladder holds
+with both valves closed, the inlet opens along the inverted steady-lift curve, skipping the valve's
+dead band below its starting current; below it, the inlet shuts and the outlet opens to the vacuum
+pump. Because the inverse cancels the static nonlinearity, the controller sees a plant whose steady
+gain from w to lift is one at every operating point.
+
+The map is piecewise linear in w with knots from a design function, written with min and max only,
+so it runs on floats and inside a SymbolicVectorSystem.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import pydrake.math as dm
+
+
+@dataclass(frozen=True)
+class SplitRangeAllocation:
+    """A monotone piecewise-linear map from a command to (inlet, outlet) currents (A).
+
+    The command is in the units of the controller's design model input: a lift (m) for the
+    pneumatic plant's Hammerstein inverse, an inlet-equivalent current (A) for identified models.
+
+    Attributes:
+        command_knots: increasing commands; commands outside are clipped to the end knots.
+        inlet_currents_a: the inlet current at each knot.
+        outlet_currents_a: the outlet current at each knot.
+    """
+
+    command_knots: np.ndarray
+    inlet_currents_a: np.ndarray
+    outlet_currents_a: np.ndarray
+
+    def __post_init__(self):
+        knots = np.asarray(self.command_knots, dtype=float)
+        if knots.ndim != 1 or knots.size < 2 or not np.all(np.diff(knots) > 0):
+            raise ValueError(f"command_knots = {knots}: expected >= 2 increasing lifts")
+        for name in ("inlet_currents_a", "outlet_currents_a"):
+            values = np.asarray(getattr(self, name), dtype=float)
+            if values.shape != knots.shape or not np.all(np.isfinite(values)):
+                raise ValueError(f"{name}: expected {knots.size} finite currents, got {values}")
+
+    @property
+    def command_range(self) -> tuple[float, float]:
+        """The commands the valves can realise; the controller saturates its command here."""
+        return float(self.command_knots[0]), float(self.command_knots[-1])
+
+    def currents(self, command):
+        """(inlet, outlet) currents (A) for a command (float or symbolic)."""
+        return (
+            _piecewise_linear(command, self.command_knots, self.inlet_currents_a),
+            _piecewise_linear(command, self.command_knots, self.outlet_currents_a),
+        )
+
+
+def _piecewise_linear(x, knots, values):
+    """Linear interpolation through (knots, values), constant beyond the ends, as a sum of clamped
+    ramps: min and max only, so it also builds a symbolic expression."""
+    result = float(values[0])
+    for k in range(len(knots) - 1):
+        slope = (values[k + 1] - values[k]) / (knots[k + 1] - knots[k])
+        if slope != 0.0:
+            segment = dm.min(dm.max(x, float(knots[k])), float(knots[k + 1])) - float(knots[k])
+            result = result + float(slope) * segment
+    return result
+
+
+def allocation_from_steady_lift(
+    inlet_currents_a,
+    steady_lifts_m,
+    outlet_starting_current_a: float,
+    outlet_saturation_current_a: float,
+    outlet_full_open_below_m: float,
+    num_knots: int = 12,
+) -> SplitRangeAllocation:
+    """An allocation from a sampled steady-lift curve of the inlet (outlet closed).
+
+    Args:
+        inlet_currents_a: increasing inlet currents, from the valve's starting current up.
+        steady_lifts_m: the lift the plant settles at for each (increasing with current).
+        outlet_starting_current_a, outlet_saturation_current_a: the outlet valve's current span.
+        outlet_full_open_below_m: how far below the lowest steady lift the command must go for
+            the outlet to open fully; transients only, since nothing holds a lift there.
+        num_knots: knots spread evenly in lift over the inlet's curve.
+    """
+    currents = np.asarray(inlet_currents_a, dtype=float)
+    lifts = np.asarray(steady_lifts_m, dtype=float)
+    if currents.shape != lifts.shape or not np.all(np.diff(lifts) > 0):
+        raise ValueError("steady_lifts_m: expected one lift per current, increasing with current")
+    if not outlet_full_open_below_m > 0:
+        raise ValueError(f"outlet_full_open_below_m = {outlet_full_open_below_m}: expected > 0")
+    inlet_lifts = np.linspace(lifts[0], lifts[-1], num_knots)
+    inlet = np.interp(inlet_lifts, lifts, currents)
+    bottom = lifts[0] - outlet_full_open_below_m
+    # Between the bottom and the lowest steady lift the outlet ramps from full to its starting
+    # current; at the lowest steady lift the inlet jumps its dead band to its starting current
+    # (a knot a hair above keeps the map a function).
+    knots = np.concatenate([[bottom, lifts[0]], inlet_lifts[1:]])
+    inlet_currents = np.concatenate([[0.0, 0.0], inlet[1:]])
+    outlet_currents = np.concatenate(
+        [[outlet_saturation_current_a, outlet_starting_current_a], np.zeros(num_knots - 1)]
+    )
+    # The dead-band jumps: just above the lowest lift the inlet is at its starting current and
+    # the outlet is shut.
+    epsilon = 1e-6 * (lifts[-1] - lifts[0])
+    knots = np.insert(knots, 2, lifts[0] + epsilon)
+    inlet_currents = np.insert(inlet_currents, 2, currents[0])
+    outlet_currents = np.insert(outlet_currents, 2, 0.0)
+    outlet_currents[1] = outlet_starting_current_a
+    return SplitRangeAllocation(knots, inlet_currents, outlet_currents)
+
+
+def current_split_allocation(inlet, outlet) -> SplitRangeAllocation:
+    """The split range for a model whose input is the inlet current (an identified model).
+
+    Commands from the inlet's starting to its saturation current go to the inlet unchanged;
+    commands below its starting current, down to one current span lower, open the outlet from
+    its starting to its saturation current instead. Both valves' dead bands are skipped, which
+    is the inverse of their static map.
+
+    Args:
+        inlet, outlet: the valves (``pneumatic_physics.ValveParameters``).
+    """
+    start = inlet.starting_current_a
+    epsilon = 1e-6 * inlet.current_span_a
+    return SplitRangeAllocation(
+        command_knots=np.array(
+            [start - inlet.current_span_a, start, start + epsilon, inlet.saturation_current_a]
+        ),
+        inlet_currents_a=np.array([0.0, 0.0, start, inlet.saturation_current_a]),
+        outlet_currents_a=np.array(
+            [outlet.saturation_current_a, outlet.starting_current_a, 0.0, 0.0]
+        ),
+    )

@@ -1,0 +1,192 @@
+import dataclasses
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
+from system_harness import port_layout
+
+from maskless.assets.loader import ConfigError
+from maskless.systems.pneumatic_design import linearize_pneumatic_plant, with_head_mass
+from maskless.systems.pneumatic_physics import (
+    GAUGE_PRESSURE,
+    LIFT,
+    net_mass_flow_kg_s,
+    valve_opening,
+)
+from maskless.systems.pneumatic_plant import (
+    PneumaticPlant,
+    equilibrium_state,
+    load_pneumatic_parameters,
+    make_pneumatic_plant,
+    validate_pneumatic_parameters,
+)
+
+
+@pytest.fixture(scope="module")
+def p():
+    return load_pneumatic_parameters()
+
+
+def time_derivatives(plant, state, inlet_a, outlet_a, parameters=None):
+    context = plant.CreateDefaultContext()
+    if parameters is not None:
+        plant.set_parameters(context, parameters)
+    context.SetContinuousState(state)
+    plant.GetInputPort("inlet_valve_current_a").FixValue(context, [inlet_a])
+    plant.GetInputPort("outlet_valve_current_a").FixValue(context, [outlet_a])
+    return plant.EvalTimeDerivatives(context).CopyToVector()
+
+
+def test_ports(p):
+    plant = PneumaticPlant(p)
+    assert port_layout(plant) == (
+        {"inlet_valve_current_a": 1, "outlet_valve_current_a": 1},
+        {"head_height_m": 1, "state": 5},
+    )
+    discrete = make_pneumatic_plant(p, equilibrium_state(p, 0.0, 0.0), p.simulation_step_s)
+    assert port_layout(discrete) == port_layout(plant)
+
+
+def test_scalar_conversion_agrees_with_float(p):
+    plant = PneumaticPlant(p)
+    state = np.array([1500.0, 0.004, 0.01, 0.1, 0.07])
+    expected = time_derivatives(plant, state, 0.12, 0.065)
+    autodiff = plant.ToAutoDiffXd()
+    ad_context = autodiff.CreateDefaultContext()
+    ad_context.SetContinuousState(state)
+    autodiff.GetInputPort("inlet_valve_current_a").FixValue(ad_context, [0.12])
+    autodiff.GetInputPort("outlet_valve_current_a").FixValue(ad_context, [0.065])
+    ad = autodiff.EvalTimeDerivatives(ad_context).CopyToVector()
+    np.testing.assert_allclose([x.value() for x in ad], expected, rtol=1e-12)
+    symbolic = plant.ToSymbolic()
+    sym_context = symbolic.CreateDefaultContext()
+    sym_context.SetContinuousState(state)
+    symbolic.GetInputPort("inlet_valve_current_a").FixValue(sym_context, [0.12])
+    symbolic.GetInputPort("outlet_valve_current_a").FixValue(sym_context, [0.065])
+    sym = symbolic.EvalTimeDerivatives(sym_context).CopyToVector()
+    np.testing.assert_allclose([x.Evaluate() for x in sym], expected, rtol=1e-12)
+
+
+@pytest.mark.parametrize("inlet_a", [0.0, 0.07, 0.1, 0.14, 0.165])
+def test_equilibrium_state_is_at_rest(p, inlet_a):
+    state = equilibrium_state(p, inlet_a, 0.0)
+    rates = time_derivatives(PneumaticPlant(p), state, inlet_a, 0.0)
+    # Pressure to 1e-4 Pa/s, lift, its rate and the spools to numerical zero.
+    assert abs(rates[0]) < 1e-4
+    np.testing.assert_allclose(rates[1:], 0.0, atol=1e-9)
+
+
+def test_steady_lift_range_of_issue_5(p):
+    lift_low = equilibrium_state(p, 0.060, 0.0)[LIFT]
+    lift_high = equilibrium_state(p, 0.165, 0.0)[LIFT]
+    assert lift_low == pytest.approx(0.0, abs=1e-9)
+    assert 0.010 <= lift_high <= 0.020
+    lifts = [equilibrium_state(p, i, 0.0)[LIFT] for i in np.linspace(0.062, 0.165, 12)]
+    assert np.all(np.diff(lifts) > 0)
+
+
+@pytest.mark.parametrize("inlet_a", [0.08, 0.12, 0.16])
+def test_linearized_slow_pole_matches_flow_time_constant(p, inlet_a):
+    A, _, _ = linearize_pneumatic_plant(p, inlet_a)
+    slow = min(np.linalg.eigvals(A), key=lambda s: abs(s.real))
+    state = equilibrium_state(p, inlet_a, 0.0)
+    gauge, lift = state[GAUGE_PRESSURE], state[LIFT]
+    opening = valve_opening(inlet_a, p.inlet)
+    dp = 1.0
+    dq_dp = (
+        net_mass_flow_kg_s(gauge + dp, opening, 0.0, p)
+        - net_mass_flow_kg_s(gauge - dp, opening, 0.0, p)
+    ) / (2 * dp)
+    RT = p.gas_constant_j_kg_k * p.air_temperature_k
+    volume = p.rest_volume_m3 + p.volume_per_lift_m2 * lift
+    p_abs = p.atmospheric_pressure_pa + gauge
+    # Air capacity of the bladder, with the head following the pressure quasi-statically.
+    capacity = volume / (p.polytropic_exponent * RT) + (
+        p_abs * p.volume_per_lift_m2 * p.contact_area_m2 / (p.stiffness_n_m * RT)
+    )
+    tau = capacity / -dq_dp
+    assert abs(slow.imag) < 1e-9
+    assert -1.0 / slow.real == pytest.approx(tau, rel=0.10)
+
+
+def run(system, initial_state, inlet_a, outlet_a, duration_s, period_s, accuracy=None):
+    builder = DiagramBuilder()
+    builder.AddSystem(system)
+    for name, value in (("inlet_valve_current_a", inlet_a), ("outlet_valve_current_a", outlet_a)):
+        source = builder.AddSystem(ConstantVectorSource([value]))
+        builder.Connect(source.get_output_port(), system.GetInputPort(name))
+    sink = builder.AddSystem(VectorLogSink(1, period_s))
+    builder.Connect(system.GetOutputPort("head_height_m"), sink.get_input_port())
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    if accuracy is not None:
+        simulator.get_mutable_integrator().set_target_accuracy(accuracy)
+    simulator.AdvanceTo(duration_s)
+    log = sink.FindLog(simulator.get_context())
+    return log.sample_times(), log.data()[0]
+
+
+_CONTINUOUS = {}
+SLEWS = [((0.0, 0.0), (0.165, 0.0)), ((0.165, 0.0), (0.0, 0.165))]
+
+
+def slew_error_m(p, head_mass_kg, start, step, step_divisor):
+    """Max |compiled - continuous| head height over a 20 s full-valve slew, logged every step of
+    the compiled plant; the continuous run (Drake RK3, target accuracy 1e-8) is cached."""
+    q = with_head_mass(p, head_mass_kg)
+    state = equilibrium_state(q, *start)
+    h = q.simulation_step_s / step_divisor
+    key = (head_mass_kg, start, step)
+    if key not in _CONTINUOUS:
+        log_period = q.simulation_step_s / 4
+        _CONTINUOUS[key] = run(PneumaticPlant(q, state), state, *step, 20.0, log_period, 1e-8)
+    t_c, y_c = _CONTINUOUS[key]
+    t_d, y_d = run(make_pneumatic_plant(q, state, h), state, *step, 20.0, h)
+    assert abs(y_c[-1] - y_c[0]) > 5e-3  # it did move
+    return np.max(np.abs(np.interp(t_d, t_c, y_c) - y_d))
+
+
+@pytest.mark.parametrize("head_mass_kg", [4.0, 6.0])
+@pytest.mark.parametrize("start, step", SLEWS, ids=["inlet", "outlet"])
+def test_compiled_plant_follows_the_continuous_one(p, head_mass_kg, start, step):
+    # The bound assets/pneumatic.yaml states for the shipped step (full-valve slews).
+    assert slew_error_m(p, head_mass_kg, start, step, 1) < 1.1e-3
+
+
+@pytest.mark.parametrize("head_mass_kg", [4.0, 6.0])
+@pytest.mark.parametrize("start, step", SLEWS, ids=["inlet", "outlet"])
+def test_compiled_plant_converges_at_first_order(p, head_mass_kg, start, step):
+    coarse = slew_error_m(p, head_mass_kg, start, step, 1)
+    fine = slew_error_m(p, head_mass_kg, start, step, 4)
+    assert fine < 0.5e-3
+    assert 3.0 < coarse / fine < 5.0  # a quarter of the step, a quarter of the error
+
+
+@pytest.mark.parametrize("currents", [(0.0, 0.0), (0.11, 0.0)])
+def test_compiled_plant_exact_at_rest(p, currents):
+    state = equilibrium_state(p, *currents)
+    t_d, y_d = run(make_pneumatic_plant(p, state, p.simulation_step_s), state, *currents, 5.0, 0.5)
+    np.testing.assert_allclose(y_d, p.rest_head_height_m + state[LIFT], atol=1e-9)
+    t_c, y_c = run(PneumaticPlant(p, state), state, *currents, 5.0, 0.5, 1e-8)
+    np.testing.assert_allclose(y_c, y_d, atol=1e-9)
+
+
+def test_head_mass_in_context_moves_the_equilibrium(p):
+    plant = PneumaticPlant(p)
+    rest = equilibrium_state(p, 0.0, 0.0)
+    heavier = with_head_mass(p, p.head_mass_kg + 1.25)
+    shifted = rest.copy()
+    shifted[LIFT] -= 1.25 * p.gravity_m_s2 / p.stiffness_n_m  # zero gauge: delta_m g / k
+    np.testing.assert_allclose(time_derivatives(plant, shifted, 0.0, 0.0, heavier), 0.0, atol=1e-9)
+    # The old rest is not an equilibrium for the heavier head: it accelerates at -delta_m g / m.
+    rates = time_derivatives(plant, rest, 0.0, 0.0, heavier)
+    assert rates[2] == pytest.approx(-1.25 * p.gravity_m_s2 / heavier.head_mass_kg, rel=1e-9)
+
+
+@pytest.mark.parametrize("field, value", [("stiffness_n_m", -4000.0), ("polytropic_exponent", 1.6)])
+def test_validation_names_the_field(p, field, value):
+    validate_pneumatic_parameters(p)
+    with pytest.raises(ConfigError, match=f"pneumatic.{field}"):
+        validate_pneumatic_parameters(dataclasses.replace(p, **{field: value}))

@@ -23,6 +23,7 @@ import numpy as np
 from maskless.analysis.metrics import tracking_metrics
 from maskless.diagrams.config import load_simulation_config
 from maskless.diagrams.simulate import run_closed_loop
+from maskless.systems.pneumatic_design import steady_lift_curve
 
 sys.path.insert(0, str(Path(__file__).parent))
 from machine import machine_description  # noqa: E402
@@ -54,8 +55,6 @@ def draw_trial(rng: np.random.Generator, config) -> dict:
 
 
 def nominal_top_lift_m(config) -> float:
-    from maskless.systems.pneumatic_design import steady_lift_curve
-
     _, lifts = steady_lift_curve(config.pneumatic, num_points=50)
     return float(lifts[-1])
 

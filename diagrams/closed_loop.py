@@ -7,6 +7,7 @@ The plant is the pneumatic "real robot", the paper's identified model or a model
 controller is the offset-free LQG or the paper's LQG (which drives the inlet only).
 """
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,12 +38,8 @@ from maskless.systems.paper_parameters import (
     paper_lqg_weights,
 )
 from maskless.systems.paper_plant import add_paper_plant, operating_head_height_m
-from maskless.systems.pneumatic_design import (
-    pneumatic_allocation,
-    pneumatic_design_model,
-    with_head_mass,
-)
-from maskless.systems.pneumatic_physics import LIFT
+from maskless.systems.pneumatic_design import pneumatic_allocation, pneumatic_design_model
+from maskless.systems.pneumatic_physics import LIFT, PneumaticParameters
 from maskless.systems.pneumatic_plant import add_pneumatic_plant, equilibrium_state
 from maskless.systems.track_fusion import add_track_fusion
 from maskless.systems.units import ma_to_a
@@ -123,21 +120,34 @@ def _identified_model(choice: str) -> IdentifiedModel:
     return load_identified_model(model_file_of(choice))
 
 
-def _pneumatic_allocation(config: SimulationConfig) -> SplitRangeAllocation:
-    """The nominal plant's Hammerstein inverse: the controller knows the nominal head only."""
-    nominal = with_head_mass(config.pneumatic, config.pneumatic.nominal_head_mass_kg)
-    return pneumatic_allocation(nominal, config.offset_free_lqg.outlet_full_open_below_m)
+@dataclass
+class _NominalPneumatic:
+    """What a controller may know of the pneumatic plant: the nominal head's parameters and their
+    Hammerstein inverse. Built once per loop: the inverse samples 400 steady states."""
+
+    parameters: PneumaticParameters
+    allocation: SplitRangeAllocation
+
+    @classmethod
+    def of(cls, config: SimulationConfig) -> "_NominalPneumatic":
+        p = config.pneumatic
+        nominal = dataclasses.replace(p, head_mass_kg=p.nominal_head_mass_kg)
+        allocation = pneumatic_allocation(nominal, config.offset_free_lqg.outlet_full_open_below_m)
+        return cls(nominal, allocation)
 
 
-def _add_plant(builder: DiagramBuilder, config: SimulationConfig) -> _Plant:
+def _paper_valve_currents_a(paper) -> tuple[float, float]:
+    """The paper valve's (starting, saturation) currents (A)."""
+    return ma_to_a(paper.valve_starting_current_ma), ma_to_a(paper.valve_saturation_current_ma)
+
+
+def _add_plant(
+    builder: DiagramBuilder, config: SimulationConfig, nominal: "_NominalPneumatic | None"
+) -> _Plant:
     paper = config.paper
-    valve_currents_a = (
-        ma_to_a(paper.valve_starting_current_ma),
-        ma_to_a(paper.valve_saturation_current_ma),
-    )
     if config.plant == "pneumatic":
         p = config.pneumatic
-        start_inlet_a, start_outlet_a = _pneumatic_allocation(config).currents(config.start_lift_m)
+        start_inlet_a, start_outlet_a = nominal.allocation.currents(config.start_lift_m)
         state = equilibrium_state(p, float(start_inlet_a), float(start_outlet_a))
         plant = add_pneumatic_plant(builder, p, state, p.simulation_step_s, name="pneumatic_plant")
         return _Plant(
@@ -155,7 +165,7 @@ def _add_plant(builder: DiagramBuilder, config: SimulationConfig) -> _Plant:
         builder,
         model,
         camera_height_m,
-        *valve_currents_a,
+        *_paper_valve_currents_a(paper),
         name=f"{config.plant.split(':')[0]}_plant",
     )
     return _Plant(
@@ -168,16 +178,19 @@ def _add_plant(builder: DiagramBuilder, config: SimulationConfig) -> _Plant:
     )
 
 
-def _offset_free_design(config: SimulationConfig, plant: _Plant):
+def _offset_free_design(
+    config: SimulationConfig, plant: _Plant, nominal: "_NominalPneumatic | None"
+):
     """(design model, allocation) for the offset-free LQG on ``plant``."""
     settings = config.offset_free_lqg
     if config.controller == "offset-free-lqg" and config.plant == "pneumatic":
-        allocation = _pneumatic_allocation(config)
-        nominal = with_head_mass(config.pneumatic, config.pneumatic.nominal_head_mass_kg)
         model = pneumatic_design_model(
-            nominal, allocation, settings.operating_lift_m, settings.sample_period_s
+            nominal.parameters,
+            nominal.allocation,
+            settings.operating_lift_m,
+            settings.sample_period_s,
         )
-        return model, allocation
+        return model, nominal.allocation
     if config.controller == "offset-free-lqg":
         identified, camera_height_m = plant.model, plant.camera_height_m
     else:
@@ -203,7 +216,8 @@ def build_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLo
     builder = DiagramBuilder()
     # Components are added flat (add_*), not as nested Diagrams: nesting nearly doubles the cost of
     # a step (benchmarks/system_overhead.py), and the loop must run >= 1000x faster than real time.
-    plant = _add_plant(builder, config)
+    nominal = _NominalPneumatic.of(config) if config.plant == "pneumatic" else None
+    plant = _add_plant(builder, config, nominal)
     start_height_m = plant.start_height_m
     reference = builder.AddNamedSystem(
         "reference",
@@ -213,8 +227,8 @@ def build_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLo
     if config.controller == "paper-lqg":
         model = paper_identified_model(paper)
         design = design_lqg(model, paper_lqg_weights(paper))
-        saturation_current_a = ma_to_a(paper.valve_saturation_current_ma)
-        valve_currents_a = (ma_to_a(paper.valve_starting_current_ma), saturation_current_a)
+        valve_currents_a = _paper_valve_currents_a(paper)
+        saturation_current_a = valve_currents_a[1]
         camera_height_m = config.kinect_v2.mount_height_m
         controller = add_lqg_controller(
             builder, model, design, camera_height_m, valve_currents_a, "paper_lqg"
@@ -229,16 +243,14 @@ def build_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLo
         outlet_command = builder.AddNamedSystem(
             "outlet_valve_shut", ConstantVectorSource([0.0])
         ).get_output_port()
-        sample_period_s = model.sample_period_s
     else:
-        model, allocation = _offset_free_design(config, plant)
+        model, allocation = _offset_free_design(config, plant, nominal)
         design = design_offset_free_lqg(model, config.offset_free_lqg.weights)
         controller = add_offset_free_lqg(
             builder, design, allocation, start_height_m, name="offset_free_lqg"
         )
         inlet_command = controller.outputs["inlet_valve_current_a"]
         outlet_command = controller.outputs["outlet_valve_current_a"]
-        sample_period_s = model.sample_period_s
     builder.Connect(inlet_command, plant.inlet)
     if plant.outlet is not None:
         builder.Connect(outlet_command, plant.outlet)
@@ -296,7 +308,7 @@ def build_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLo
             for port in ("distance_m", "valid")
         }
         logged = {
-            signal: (port, frame_periods_s.get(signal, sample_period_s))
+            signal: (port, frame_periods_s.get(signal, model.sample_period_s))
             for signal, port in exported.items()
         }
         loggers = _add_loggers(builder, logged)

@@ -206,8 +206,11 @@ def validate_simulation_config(config: SimulationConfig) -> None:
     fraction = controller.weights.state_weight_fraction
     require(fraction >= 0, "offset_free_lqg.weights.state_weight_fraction", fraction, ">= 0")
     pneumatic = config.pneumatic
-    for field_name in ("start_lift_m", "offset_free_lqg.operating_lift_m"):
-        value = config.start_lift_m if field_name == "start_lift_m" else controller.operating_lift_m
+    lifts = {
+        "start_lift_m": config.start_lift_m,
+        "offset_free_lqg.operating_lift_m": controller.operating_lift_m,
+    }
+    for field_name, value in lifts.items():
         require(
             pneumatic.min_lift_m <= value <= pneumatic.max_lift_m,
             field_name,

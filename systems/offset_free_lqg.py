@@ -157,20 +157,21 @@ def design_offset_free_lqg(
 ) -> OffsetFreeLqgDesign:
     """LQR and steady Kalman gains for ``model`` with an input-disturbance estimate."""
     n = model.A.shape[0]
+    N_x, N_u = steady_targets(model)
+    state_scale = _output_scaled_identity(N_x)
     Q = weights.output_error_weight_per_m2 * (
-        model.C.T @ model.C + weights.state_weight_fraction * _output_scaled_identity(model)
+        model.C.T @ model.C + weights.state_weight_fraction * state_scale
     )
     R = np.array([[weights.command_weight_per_m2]])
     K, _ = DiscreteTimeLinearQuadraticRegulator(model.A, model.B, Q, R)
     A_a, B_a, C_a = augment_with_input_disturbance(model)
     W = np.zeros((n + 1, n + 1))
-    W[:n, :n] = weights.process_noise_m2 * _output_scaled_identity(model)
+    W[:n, :n] = weights.process_noise_m2 * state_scale
     W[n, n] = weights.disturbance_noise_m2
     V = np.array([[weights.measurement_noise_m2]])
     # The filter's prior covariance solves the dual (estimation) Riccati equation.
     P = DiscreteAlgebraicRiccatiEquation(A_a.T, C_a.T, W, V)
     M = P @ C_a.T / (C_a @ P @ C_a.T + V)[0, 0]
-    N_x, N_u = steady_targets(model)
     return OffsetFreeLqgDesign(
         model=model,
         K=K,
@@ -183,10 +184,9 @@ def design_offset_free_lqg(
     )
 
 
-def _output_scaled_identity(model: LinearDesignModel) -> np.ndarray:
-    """A diagonal that weighs each state as much as the output it would produce in steady state,
-    so one number weighs states of any units (Pa, m, A) evenly."""
-    N_x, _ = steady_targets(model)
+def _output_scaled_identity(N_x: np.ndarray) -> np.ndarray:
+    """A diagonal that weighs each state as much as the output it would produce in steady state
+    (N_x per unit output), so one number weighs states of any units (Pa, m, A) evenly."""
     scale = np.where(np.abs(N_x) > 1e-12, 1.0 / np.maximum(np.abs(N_x), 1e-12), 1.0)
     return np.diag(scale**2)
 

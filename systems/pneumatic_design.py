@@ -10,17 +10,16 @@ The valve is linearised with its spool moving: inside the play band a valve pass
 at all (the hysteresis), which the offset-free controller rejects as a disturbance instead.
 """
 
-import dataclasses
-
 import numpy as np
 from pydrake.systems.primitives import Linearize
 from scipy.linalg import expm
 
 from maskless.systems.offset_free_lqg import LinearDesignModel
 from maskless.systems.pneumatic_physics import (
+    GAUGE_PRESSURE,
     INLET_SPOOL,
     LIFT,
-    OUTLET_SPOOL,
+    LIFT_RATE,
     PneumaticParameters,
     valve_opening,
 )
@@ -33,7 +32,7 @@ from maskless.systems.pneumatic_plant import (
 from maskless.systems.valve_allocation import SplitRangeAllocation, allocation_from_steady_lift
 
 # States the inlet current reaches; the outlet spool, shut at rest, is neither driven nor seen.
-DESIGN_STATES = (0, LIFT, 2, INLET_SPOOL)
+DESIGN_STATES = (GAUGE_PRESSURE, LIFT, LIFT_RATE, INLET_SPOOL)
 # How far past the edge of the play band the spool sits when linearised: small enough to leave the
 # equilibrium (Drake's Linearize checks it), large enough to pick the moving branch of the band.
 _SPOOL_MOVING_OFFSET_A = 1e-9
@@ -86,7 +85,6 @@ def linearize_pneumatic_plant(p: PneumaticParameters, inlet_current_a: float):
         output_port_index=plant.GetOutputPort("head_height_m").get_index(),
     )
     keep = list(DESIGN_STATES)
-    assert OUTLET_SPOOL not in keep
     return linear.A()[np.ix_(keep, keep)], linear.B()[keep, :], linear.C()[:, keep]
 
 
@@ -121,8 +119,3 @@ def pneumatic_design_model(
         input_operating_point=operating_lift_m,
         output_operating_point_m=p.rest_head_height_m + operating_lift_m,
     )
-
-
-def with_head_mass(p: PneumaticParameters, head_mass_kg: float) -> PneumaticParameters:
-    """A copy of ``p`` positioning a different head."""
-    return dataclasses.replace(p, head_mass_kg=head_mass_kg)

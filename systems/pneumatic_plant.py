@@ -345,19 +345,3 @@ def add_pneumatic_plant(
 
 
 make_pneumatic_plant = diagram_form(add_pneumatic_plant)
-__all__ = [
-    "INPUT_NAMES",
-    "LIFT",
-    "OUTLET_SPOOL",
-    "PneumaticPlant",
-    "PneumaticPlant_",
-    "add_pneumatic_plant",
-    "equilibrium_state",
-    "load_pneumatic_parameters",
-    "make_pneumatic_plant",
-    "parameter_vector",
-    "parameters_from_vector",
-    "steady_gauge_pressure_pa",
-    "steady_lift_m",
-    "validate_pneumatic_parameters",
-]

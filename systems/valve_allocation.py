@@ -94,24 +94,40 @@ def allocation_from_steady_lift(
     if not outlet_full_open_below_m > 0:
         raise ValueError(f"outlet_full_open_below_m = {outlet_full_open_below_m}: expected > 0")
     inlet_lifts = np.linspace(lifts[0], lifts[-1], num_knots)
-    inlet = np.interp(inlet_lifts, lifts, currents)
-    bottom = lifts[0] - outlet_full_open_below_m
-    # Between the bottom and the lowest steady lift the outlet ramps from full to its starting
-    # current; at the lowest steady lift the inlet jumps its dead band to its starting current
-    # (a knot a hair above keeps the map a function).
-    knots = np.concatenate([[bottom, lifts[0]], inlet_lifts[1:]])
-    inlet_currents = np.concatenate([[0.0, 0.0], inlet[1:]])
-    outlet_currents = np.concatenate(
-        [[outlet_saturation_current_a, outlet_starting_current_a], np.zeros(num_knots - 1)]
+    return _split_range(
+        inlet_lifts,
+        np.interp(inlet_lifts, lifts, currents),
+        lifts[0] - outlet_full_open_below_m,
+        outlet_starting_current_a,
+        outlet_saturation_current_a,
     )
-    # The dead-band jumps: just above the lowest lift the inlet is at its starting current and
-    # the outlet is shut.
-    epsilon = 1e-6 * (lifts[-1] - lifts[0])
-    knots = np.insert(knots, 2, lifts[0] + epsilon)
-    inlet_currents = np.insert(inlet_currents, 2, currents[0])
-    outlet_currents = np.insert(outlet_currents, 2, 0.0)
-    outlet_currents[1] = outlet_starting_current_a
-    return SplitRangeAllocation(knots, inlet_currents, outlet_currents)
+
+
+def _split_range(
+    inlet_commands,
+    inlet_currents,
+    outlet_fully_open_command: float,
+    outlet_starting_current_a: float,
+    outlet_saturation_current_a: float,
+) -> SplitRangeAllocation:
+    """The allocation both designs share: the inlet serves ``inlet_commands`` (from its starting
+    current up); below the first of them the outlet ramps from its starting current to fully
+    open at ``outlet_fully_open_command``. At the first inlet command the currents jump both
+    valves' dead bands (a knot a hair above keeps the map a function)."""
+    epsilon = 1e-6 * (inlet_commands[-1] - inlet_commands[0])
+    tail = len(inlet_commands) - 1
+    return SplitRangeAllocation(
+        command_knots=np.concatenate(
+            [
+                [outlet_fully_open_command, inlet_commands[0], inlet_commands[0] + epsilon],
+                inlet_commands[1:],
+            ]
+        ),
+        inlet_currents_a=np.concatenate([[0.0, 0.0, inlet_currents[0]], inlet_currents[1:]]),
+        outlet_currents_a=np.concatenate(
+            [[outlet_saturation_current_a, outlet_starting_current_a, 0.0], np.zeros(tail)]
+        ),
+    )
 
 
 def current_split_allocation(inlet, outlet) -> SplitRangeAllocation:
@@ -125,14 +141,11 @@ def current_split_allocation(inlet, outlet) -> SplitRangeAllocation:
     Args:
         inlet, outlet: the valves (``pneumatic_physics.ValveParameters``).
     """
-    start = inlet.starting_current_a
-    epsilon = 1e-6 * inlet.current_span_a
-    return SplitRangeAllocation(
-        command_knots=np.array(
-            [start - inlet.current_span_a, start, start + epsilon, inlet.saturation_current_a]
-        ),
-        inlet_currents_a=np.array([0.0, 0.0, start, inlet.saturation_current_a]),
-        outlet_currents_a=np.array(
-            [outlet.saturation_current_a, outlet.starting_current_a, 0.0, 0.0]
-        ),
+    inlet_range = np.array([inlet.starting_current_a, inlet.saturation_current_a])
+    return _split_range(
+        inlet_range,
+        inlet_range,
+        inlet.starting_current_a - inlet.current_span_a,
+        outlet.starting_current_a,
+        outlet.saturation_current_a,
     )

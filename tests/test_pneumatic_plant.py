@@ -8,7 +8,7 @@ from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 from system_harness import port_layout
 
 from maskless.assets.loader import ConfigError
-from maskless.systems.pneumatic_design import linearize_pneumatic_plant, with_head_mass
+from maskless.systems.pneumatic_design import linearize_pneumatic_plant
 from maskless.systems.pneumatic_physics import (
     GAUGE_PRESSURE,
     LIFT,
@@ -53,20 +53,16 @@ def test_scalar_conversion_agrees_with_float(p):
     plant = PneumaticPlant(p)
     state = np.array([1500.0, 0.004, 0.01, 0.1, 0.07])
     expected = time_derivatives(plant, state, 0.12, 0.065)
-    autodiff = plant.ToAutoDiffXd()
-    ad_context = autodiff.CreateDefaultContext()
-    ad_context.SetContinuousState(state)
-    autodiff.GetInputPort("inlet_valve_current_a").FixValue(ad_context, [0.12])
-    autodiff.GetInputPort("outlet_valve_current_a").FixValue(ad_context, [0.065])
-    ad = autodiff.EvalTimeDerivatives(ad_context).CopyToVector()
-    np.testing.assert_allclose([x.value() for x in ad], expected, rtol=1e-12)
-    symbolic = plant.ToSymbolic()
-    sym_context = symbolic.CreateDefaultContext()
-    sym_context.SetContinuousState(state)
-    symbolic.GetInputPort("inlet_valve_current_a").FixValue(sym_context, [0.12])
-    symbolic.GetInputPort("outlet_valve_current_a").FixValue(sym_context, [0.065])
-    sym = symbolic.EvalTimeDerivatives(sym_context).CopyToVector()
-    np.testing.assert_allclose([x.Evaluate() for x in sym], expected, rtol=1e-12)
+    for converted, value_of in (
+        (plant.ToAutoDiffXd(), lambda x: x.value()),
+        (plant.ToSymbolic(), lambda x: x.Evaluate()),
+    ):
+        context = converted.CreateDefaultContext()
+        context.SetContinuousState(state)
+        converted.GetInputPort("inlet_valve_current_a").FixValue(context, [0.12])
+        converted.GetInputPort("outlet_valve_current_a").FixValue(context, [0.065])
+        derivatives = converted.EvalTimeDerivatives(context).CopyToVector()
+        np.testing.assert_allclose([value_of(x) for x in derivatives], expected, rtol=1e-12)
 
 
 @pytest.mark.parametrize("inlet_a", [0.0, 0.07, 0.1, 0.14, 0.165])
@@ -135,7 +131,7 @@ SLEWS = [((0.0, 0.0), (0.165, 0.0)), ((0.165, 0.0), (0.0, 0.165))]
 def slew_error_m(p, head_mass_kg, start, step, step_divisor):
     """Max |compiled - continuous| head height over a 20 s full-valve slew, logged every step of
     the compiled plant; the continuous run (Drake RK3, target accuracy 1e-8) is cached."""
-    q = with_head_mass(p, head_mass_kg)
+    q = dataclasses.replace(p, head_mass_kg=head_mass_kg)
     state = equilibrium_state(q, *start)
     h = q.simulation_step_s / step_divisor
     key = (head_mass_kg, start, step)
@@ -176,7 +172,7 @@ def test_compiled_plant_exact_at_rest(p, currents):
 def test_head_mass_in_context_moves_the_equilibrium(p):
     plant = PneumaticPlant(p)
     rest = equilibrium_state(p, 0.0, 0.0)
-    heavier = with_head_mass(p, p.head_mass_kg + 1.25)
+    heavier = dataclasses.replace(p, head_mass_kg=p.head_mass_kg + 1.25)
     shifted = rest.copy()
     shifted[LIFT] -= 1.25 * p.gravity_m_s2 / p.stiffness_n_m  # zero gauge: delta_m g / k
     np.testing.assert_allclose(time_derivatives(plant, shifted, 0.0, 0.0, heavier), 0.0, atol=1e-9)

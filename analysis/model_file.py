@@ -6,19 +6,24 @@ the verdict. The loader returns the SI ``IdentifiedModel`` the LQG design and pl
 """
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import yaml
 
-from maskless.analysis.identification_report import FittedModel
 from maskless.systems.paper_parameters import IdentifiedModel
+
+if TYPE_CHECKING:
+    # For annotations only: identification imports scipy.signal (~0.6 s), which `maskless
+    # simulate` loads this module for but never uses.
+    from maskless.analysis.identification_report import FittedModel
 
 # SI value of one unit of each unit the files may carry.
 _SI_PER_UNIT = {"m": 1.0, "mm": 1e-3, "A": 1.0, "mA": 1e-3}
 
 
 def model_file_contents(
-    fitted: FittedModel,
+    fitted: "FittedModel",
     *,
     sample_period_s: float,
     input_unit: str,

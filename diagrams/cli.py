@@ -14,9 +14,17 @@ _COMMANDS = {
         "maskless.diagrams.simulate",
         "simulate the closed loop, record it and summarise it",
     ),
+    "excite": (
+        "maskless.diagrams.excite",
+        "drive the plant open loop with an identification signal and record it",
+    ),
     "identify": (
         "maskless.diagrams.identify",
         "identify models from a recorded experiment and judge them",
+    ),
+    "workflow": (
+        "maskless.diagrams.paper_workflow",
+        "excite, identify, design and simulate: the paper's workflow end to end",
     ),
 }
 

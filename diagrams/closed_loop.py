@@ -23,7 +23,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from maskless.analysis.model_file import load_identified_model
 from maskless.diagrams.config import ReferenceConfig, SimulationConfig, model_file_of
-from maskless.systems.depth_sensor import add_depth_sensor
+from maskless.systems.depth_sensor import add_depth_sensor, latency_frames
 from maskless.systems.local_kalman_filter import add_local_kalman_filter
 from maskless.systems.lqg_controller import add_lqg_controller, design_lqg
 from maskless.systems.offset_free_lqg import (
@@ -77,7 +77,7 @@ class ClosedLoop:
 
 
 @dataclass
-class _Plant:
+class AddedPlant:
     """An added plant's ports and what the controller design needs from it."""
 
     inlet: InputPort
@@ -121,7 +121,7 @@ def _identified_model(choice: str) -> IdentifiedModel:
 
 
 @dataclass
-class _NominalPneumatic:
+class NominalPneumatic:
     """What a controller may know of the pneumatic plant: the nominal head's parameters and their
     Hammerstein inverse. Built once per loop: the inverse samples 400 steady states."""
 
@@ -129,7 +129,7 @@ class _NominalPneumatic:
     allocation: SplitRangeAllocation
 
     @classmethod
-    def of(cls, config: SimulationConfig) -> "_NominalPneumatic":
+    def of(cls, config: SimulationConfig) -> "NominalPneumatic":
         p = config.pneumatic
         nominal = dataclasses.replace(p, head_mass_kg=p.nominal_head_mass_kg)
         allocation = pneumatic_allocation(nominal, config.offset_free_lqg.outlet_full_open_below_m)
@@ -141,16 +141,18 @@ def _paper_valve_currents_a(paper) -> tuple[float, float]:
     return ma_to_a(paper.valve_starting_current_ma), ma_to_a(paper.valve_saturation_current_ma)
 
 
-def _add_plant(
-    builder: DiagramBuilder, config: SimulationConfig, nominal: "_NominalPneumatic | None"
-) -> _Plant:
+def add_plant(
+    builder: DiagramBuilder, config: SimulationConfig, nominal: "NominalPneumatic | None"
+) -> AddedPlant:
+    """Adds ``config.plant``, at rest at ``config.start_lift_m`` for the pneumatic plant (whose
+    starting currents come from ``nominal``'s allocation) or at the model's operating point."""
     paper = config.paper
     if config.plant == "pneumatic":
         p = config.pneumatic
         start_inlet_a, start_outlet_a = nominal.allocation.currents(config.start_lift_m)
         state = equilibrium_state(p, float(start_inlet_a), float(start_outlet_a))
         plant = add_pneumatic_plant(builder, p, state, p.simulation_step_s, name="pneumatic_plant")
-        return _Plant(
+        return AddedPlant(
             inlet=plant.inputs["inlet_valve_current_a"],
             outlet=plant.inputs["outlet_valve_current_a"],
             head_height=plant.outputs["head_height_m"],
@@ -168,7 +170,7 @@ def _add_plant(
         *_paper_valve_currents_a(paper),
         name=f"{config.plant.split(':')[0]}_plant",
     )
-    return _Plant(
+    return AddedPlant(
         inlet=plant.inputs["inlet_valve_current_a"],
         outlet=None,
         head_height=plant.outputs["head_height_m"],
@@ -179,7 +181,7 @@ def _add_plant(
 
 
 def _offset_free_design(
-    config: SimulationConfig, plant: _Plant, nominal: "_NominalPneumatic | None"
+    config: SimulationConfig, plant: AddedPlant, nominal: "NominalPneumatic | None"
 ):
     """(design model, allocation) for the offset-free LQG on ``plant``."""
     settings = config.offset_free_lqg
@@ -199,6 +201,95 @@ def _offset_free_design(
     return model, current_split_allocation(config.pneumatic.inlet, config.pneumatic.outlet)
 
 
+@dataclass
+class SensingChain:
+    """The added cameras, their local filters and the fusion site (PortMaps by camera name)."""
+
+    sensor_names: list[str]
+    sensors: dict
+    filters: dict
+    fusion: object
+
+
+def add_sensing_chain(
+    builder: DiagramBuilder, config: SimulationConfig, head_height: OutputPort, start_height_m
+) -> SensingChain:
+    """Adds both cameras watching ``head_height``, a local Kalman filter on each (starting at
+    ``start_height_m``) and the track-to-track fusion of their tracks."""
+    variances = paper_filter_variances_si(config.paper)
+    sensor_names = list(config.sensors())
+    filters = {}
+    sensors = {}
+    for name, sensor_config in config.sensors().items():
+        sensor = add_depth_sensor(builder, name, sensor_config)
+        local_filter = add_local_kalman_filter(
+            builder,
+            f"{name}_filter",
+            camera_height_m=sensor_config.mount_height_m,
+            frame_period_s=1.0 / sensor_config.frame_rate_hz,
+            acceleration_variance_m2_s4=variances["acceleration_variance_m2_s4"],
+            measurement_variance_m2=variances[name],
+            initial_height_m=start_height_m,
+            valid_range_m=(sensor_config.min_range_m, sensor_config.max_range_m),
+            config=config.local_filter,
+        )
+        builder.Connect(head_height, sensor.inputs["head_height_m"])
+        for port in ("distance_m", "valid"):
+            builder.Connect(sensor.outputs[port], local_filter.inputs[port])
+        sensors[name], filters[name] = sensor, local_filter
+    fusion = add_track_fusion(builder, sensor_names, name="fusion")
+    for name, local_filter in filters.items():
+        for port in ("estimated_state", "covariance"):
+            builder.Connect(local_filter.outputs[port], fusion.inputs[f"{name}_{port}"])
+    return SensingChain(sensor_names, sensors, filters, fusion)
+
+
+def export_and_log(
+    builder: DiagramBuilder,
+    config: SimulationConfig,
+    sensing: SensingChain,
+    loop_outputs: dict[str, OutputPort],
+    command_period_s: float,
+    record: bool,
+) -> dict[str, tuple[VectorLogSink, slice]]:
+    """Exports ``loop_outputs`` (reference, head height, valve currents) and every sensing output
+    under its namespaced name, and logs each when ``record``: camera frames at their frame period,
+    the rest at ``command_period_s``, so estimates and commands share timestamps."""
+    exported = dict(loop_outputs)
+    exported["fusion.estimated_state"] = sensing.fusion.outputs["estimated_state"]
+    exported["fusion.covariance"] = sensing.fusion.outputs["covariance"]
+    for name in sensing.sensor_names:
+        for port in ("distance_m", "valid"):
+            exported[f"{name}.{port}"] = sensing.sensors[name].outputs[port]
+        for port in ("estimated_state", "covariance"):
+            exported[f"{name}_filter.{port}"] = sensing.filters[name].outputs[port]
+    for port_name, port in exported.items():
+        builder.ExportOutput(port, port_name)
+    if not record:
+        return {}
+    frame_periods_s = {
+        f"{name}.{port}": 1.0 / config.sensors()[name].frame_rate_hz
+        for name in sensing.sensor_names
+        for port in ("distance_m", "valid")
+    }
+    logged = {
+        signal: (port, frame_periods_s.get(signal, command_period_s))
+        for signal, port in exported.items()
+    }
+    return _add_loggers(builder, logged)
+
+
+def measurement_delay_samples(config: SimulationConfig) -> int:
+    """Controller ticks between the head's height and the fused estimate the controller reads:
+    the slowest camera's latency (whole frames), plus one tick because the controller reads the
+    local filters' state as it was before its own tick (fusion passes it straight through)."""
+    period_s = config.offset_free_lqg.sample_period_s
+    latency_s = max(
+        latency_frames(sensor) / sensor.frame_rate_hz for sensor in config.sensors().values()
+    )
+    return round(latency_s / period_s) + 1
+
+
 def build_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLoop:
     """Wires the whole chain for ``config``: its plant, cameras, filters, fusion and controller.
 
@@ -212,12 +303,11 @@ def build_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLo
     ``{name}_filter.covariance``.
     """
     paper = config.paper
-    variances = paper_filter_variances_si(paper)
     builder = DiagramBuilder()
     # Components are added flat (add_*), not as nested Diagrams: nesting nearly doubles the cost of
     # a step (benchmarks/system_overhead.py), and the loop must run >= 1000x faster than real time.
-    nominal = _NominalPneumatic.of(config) if config.plant == "pneumatic" else None
-    plant = _add_plant(builder, config, nominal)
+    nominal = NominalPneumatic.of(config) if config.plant == "pneumatic" else None
+    plant = add_plant(builder, config, nominal)
     start_height_m = plant.start_height_m
     reference = builder.AddNamedSystem(
         "reference",
@@ -245,7 +335,9 @@ def build_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLo
         ).get_output_port()
     else:
         model, allocation = _offset_free_design(config, plant, nominal)
-        design = design_offset_free_lqg(model, config.offset_free_lqg.weights)
+        design = design_offset_free_lqg(
+            model, config.offset_free_lqg.weights, measurement_delay_samples(config)
+        )
         controller = add_offset_free_lqg(
             builder, design, allocation, start_height_m, name="offset_free_lqg"
         )
@@ -255,63 +347,24 @@ def build_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLo
     if plant.outlet is not None:
         builder.Connect(outlet_command, plant.outlet)
 
-    sensor_names = list(config.sensors())
-    filters = {}
-    sensors = {}
-    for name, sensor_config in config.sensors().items():
-        sensor = add_depth_sensor(builder, name, sensor_config)
-        local_filter = add_local_kalman_filter(
-            builder,
-            f"{name}_filter",
-            camera_height_m=sensor_config.mount_height_m,
-            frame_period_s=1.0 / sensor_config.frame_rate_hz,
-            acceleration_variance_m2_s4=variances["acceleration_variance_m2_s4"],
-            measurement_variance_m2=variances[name],
-            initial_height_m=start_height_m,
-            valid_range_m=(sensor_config.min_range_m, sensor_config.max_range_m),
-            config=config.local_filter,
-        )
-        builder.Connect(plant.head_height, sensor.inputs["head_height_m"])
-        for port in ("distance_m", "valid"):
-            builder.Connect(sensor.outputs[port], local_filter.inputs[port])
-        sensors[name], filters[name] = sensor, local_filter
-    fusion = add_track_fusion(builder, sensor_names, name="fusion")
-    for name, local_filter in filters.items():
-        for port in ("estimated_state", "covariance"):
-            builder.Connect(local_filter.outputs[port], fusion.inputs[f"{name}_{port}"])
-    builder.Connect(fusion.outputs["estimated_state"], controller.inputs["fused_estimated_state"])
+    sensing = add_sensing_chain(builder, config, plant.head_height, start_height_m)
+    builder.Connect(
+        sensing.fusion.outputs["estimated_state"], controller.inputs["fused_estimated_state"]
+    )
     builder.Connect(reference.get_output_port(), controller.inputs["reference_head_height_m"])
-
-    exported = {
-        "reference_head_height_m": reference.get_output_port(),
-        "head_height_m": plant.head_height,
-        "inlet_valve_current_a": inlet_command,
-        "outlet_valve_current_a": outlet_command,
-        "fusion.estimated_state": fusion.outputs["estimated_state"],
-        "fusion.covariance": fusion.outputs["covariance"],
-    }
-    for name in sensor_names:
-        for port in ("distance_m", "valid"):
-            exported[f"{name}.{port}"] = sensors[name].outputs[port]
-        for port in ("estimated_state", "covariance"):
-            exported[f"{name}_filter.{port}"] = filters[name].outputs[port]
-    for port_name, port in exported.items():
-        builder.ExportOutput(port, port_name)
-
-    loggers = {}
-    if record:
-        # Every exported output is logged: camera frames at their frame period, the rest at the
-        # controller's, so estimates and command share timestamps.
-        frame_periods_s = {
-            f"{name}.{port}": 1.0 / config.sensors()[name].frame_rate_hz
-            for name in sensor_names
-            for port in ("distance_m", "valid")
-        }
-        logged = {
-            signal: (port, frame_periods_s.get(signal, model.sample_period_s))
-            for signal, port in exported.items()
-        }
-        loggers = _add_loggers(builder, logged)
+    loggers = export_and_log(
+        builder,
+        config,
+        sensing,
+        {
+            "reference_head_height_m": reference.get_output_port(),
+            "head_height_m": plant.head_height,
+            "inlet_valve_current_a": inlet_command,
+            "outlet_valve_current_a": outlet_command,
+        },
+        model.sample_period_s,
+        record,
+    )
 
     diagram = builder.Build()
     plant_name = config.plant.split(":")[0]
@@ -324,6 +377,6 @@ def build_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLo
         model=model,
         design=design,
         start_height_m=start_height_m,
-        sensor_names=sensor_names,
+        sensor_names=sensing.sensor_names,
         loggers=loggers,
     )

@@ -235,6 +235,13 @@ def write_outputs(fitted_models, parts, report, offsets, units, args) -> None:
 
 def run_command(args: argparse.Namespace) -> int:
     """`maskless identify`: returns the process exit code."""
+    report = run_identification(args)
+    print(json.dumps(report) if args.json else format_report(report, args.out))
+    return 0
+
+
+def run_identification(args: argparse.Namespace) -> dict:
+    """Fits, judges and writes the models ``args`` ask for; returns the report."""
     if not (math.isfinite(args.ts) and args.ts > 0):
         raise RecordError(f"--ts {args.ts}: expected a positive, finite sample period in s")
     orders = parse_orders(args.orders)
@@ -287,8 +294,7 @@ def run_command(args: argparse.Namespace) -> int:
         "units": {"input": units[0], "output": units[1]},
     }
     write_outputs(fitted_models, parts, report, offsets, units, args)
-    print(json.dumps(report) if args.json else format_report(report, args.out))
-    return 0
+    return report
 
 
 def format_report(report: dict, out: Path) -> str:

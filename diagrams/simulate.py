@@ -84,7 +84,17 @@ def run_closed_loop(
         record: log every recorded signal (False measures the bare diagram).
         progress: called as progress(simulated_s, duration_s) between chunks of a long run.
     """
-    closed_loop = build_closed_loop(config, record=record)
+    return simulate_loop(build_closed_loop(config, record=record), config, progress=progress)
+
+
+def simulate_loop(
+    closed_loop: ClosedLoop,
+    config: SimulationConfig,
+    *,
+    progress: Callable[[float, float], None] | None = None,
+) -> SimulationRun:
+    """Simulates a built loop for ``config.duration_s``, seeded with ``config.random_seed``, and
+    collects its logs."""
     simulator = Simulator(closed_loop.diagram)
     context = simulator.get_mutable_context()
     closed_loop.diagram.SetRandomContext(context, RandomGenerator(config.random_seed))
@@ -167,8 +177,9 @@ def recording_channels(run: SimulationRun) -> list[Channel]:
     return channels
 
 
-def plot_run(run: SimulationRun, path: Path) -> Path:
-    """The run's plot (see ``plot_closed_loop``)."""
+def plot_run(run: SimulationRun, path: Path, show_tolerance: bool = True) -> Path:
+    """The run's plot (see ``plot_closed_loop``), with the clinical band about the reference
+    when ``show_tolerance``."""
     s = run.signals
     return plot_closed_loop(
         path,
@@ -185,7 +196,7 @@ def plot_run(run: SimulationRun, path: Path) -> Path:
         outlet_command_a=s["outlet_valve_current_a"].values[0],
         title=f"{run.closed_loop.plant} plant, {run.closed_loop.controller}: head height and "
         "valve commands",
-        tolerance_m=run.config.metrics.tolerance_m,
+        tolerance_m=run.config.metrics.tolerance_m if show_tolerance else None,
     )
 
 
@@ -242,6 +253,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_command(args: argparse.Namespace) -> int:
     """`maskless simulate`: returns the process exit code."""
+    summary = run_simulation(args)
+    print(json.dumps(summary) if args.json else format_summary(summary))
+    return 0
+
+
+def run_simulation(args: argparse.Namespace) -> dict:
+    """Runs, records and plots the simulation ``args`` describe; returns the summary."""
     config = load_simulation_config(args.config)
     if args.duration is not None:
         config.duration_s = args.duration
@@ -271,5 +289,4 @@ def run_command(args: argparse.Namespace) -> int:
     write_recording(mcap_path, recording_channels(run))
     plotting.wait()
     summary["files"] = {"recording": str(mcap_path), "plot": str(png_path)}
-    print(json.dumps(summary) if args.json else format_summary(summary))
-    return 0
+    return summary

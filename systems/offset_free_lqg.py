@@ -2,7 +2,10 @@
 
 Design is pure (``design_offset_free_lqg``): the plant's discrete linear model (from Drake's
 ``Linearize`` of the pneumatic plant, or an identified model) is augmented with a constant input
-disturbance d, x+ = A x + B (u + d), y = C x. Drake's DiscreteTimeLinearQuadraticRegulator gives the
+disturbance d, x+ = A x + B (u + d), and, for the estimator, with the measurement's delay: the
+fused height the controller reads at a tick is the head's height some ticks ago (the camera's
+latency and one tick for each filter stage), so the estimator carries a chain of past heights and
+reads the oldest, y = C x(k - delay). Leaving that delay out of the design overshoots. Drake's DiscreteTimeLinearQuadraticRegulator gives the
 state feedback K on (A, B); Drake's DiscreteAlgebraicRiccatiEquation gives the steady Kalman
 covariance of the augmented model, from which the filter gain M = P Cᵀ (C P Cᵀ + V)⁻¹ corrects the
 estimate with the measurement of the same tick (the predictor gain A P Cᵀ (...)⁻¹ that
@@ -66,16 +69,21 @@ class LinearDesignModel:
 
 @dataclass
 class OffsetFreeLqgWeights:
-    """Design weights, in SI; assets/controller.yaml gives the reasons for the shipped values.
+    """Design weights, in SI; assets/simulation.yaml gives the reasons for the shipped values.
+
+    The command and its disturbance are weighed by the height they would hold in steady state
+    (the model's DC gain times the command), so the same weights serve a model driven by a lift
+    command (the pneumatic design, DC gain about 1) and one driven by a current in amperes (an
+    identified model, DC gain ~0.2 m/A).
 
     Attributes:
         output_error_weight_per_m2: LQR weight on the height error, y² (1/m²).
-        command_weight_per_m2: LQR weight on the command, u² (in the command's units⁻²).
+        command_weight_per_m2: LQR weight on the command's height equivalent (1/m²).
         state_weight_fraction: LQR weight on each model state, as a fraction of the output's
             (keeps the Riccati equation well posed for states the output does not see).
         process_noise_m2: Kalman process noise on each model state per period (model error).
-        disturbance_noise_m2: Kalman random-walk variance of the input disturbance per period:
-            how fast the offset estimate follows a change.
+        disturbance_noise_m2: Kalman random-walk variance of the input disturbance's height
+            equivalent per period: how fast the offset estimate follows a change.
         measurement_noise_m2: variance of the fused height the controller reads.
     """
 
@@ -93,14 +101,18 @@ class OffsetFreeLqgDesign:
 
     Attributes:
         model: the model designed on.
+        measurement_delay_samples: ticks between the head's height and its fused estimate
+            reaching the controller.
         K: LQR gain on the model state, u = -K x (1 x n).
-        M: Kalman filter (update) gain of the augmented state [x, d] ((n + 1) x 1).
-        augmented_A, augmented_B, augmented_C: the disturbance-augmented model.
+        M: Kalman filter (update) gain of the augmented state [x, d, delayed heights]
+            ((n + 1 + delay) x 1).
+        augmented_A, augmented_B, augmented_C: the disturbance- and delay-augmented model.
         state_per_reference: N_x, steady state per unit reference deviation.
         command_per_reference: N_u, steady command per unit reference deviation.
     """
 
     model: LinearDesignModel
+    measurement_delay_samples: int
     K: np.ndarray
     M: np.ndarray
     augmented_A: np.ndarray
@@ -108,6 +120,17 @@ class OffsetFreeLqgDesign:
     augmented_C: np.ndarray
     state_per_reference: np.ndarray
     command_per_reference: float
+
+    def estimator_state_at(self, output_deviation_m: float) -> np.ndarray:
+        """The augmented state [x, d, delayed heights] at rest at ``output_deviation_m``, with
+        no disturbance."""
+        return np.concatenate(
+            [
+                self.state_per_reference * output_deviation_m,
+                [0.0],
+                np.full(self.measurement_delay_samples, output_deviation_m),
+            ]
+        )
 
 
 def design_model_from_identified(
@@ -134,12 +157,27 @@ def design_model_from_identified(
     )
 
 
-def augment_with_input_disturbance(model: LinearDesignModel):
-    """(A_a, B_a, C_a) of x+ = A x + B (u + d), d+ = d, y = C x."""
-    n = model.A.shape[0]
-    A_a = np.block([[model.A, model.B], [np.zeros((1, n)), np.ones((1, 1))]])
-    B_a = np.vstack([model.B, np.zeros((1, 1))])
-    C_a = np.hstack([model.C, np.zeros((1, 1))])
+def augment_for_estimation(model: LinearDesignModel, measurement_delay_samples: int = 0):
+    """(A_a, B_a, C_a) of x+ = A x + B (u + d), d+ = d, z1+ = C x, z(i+1)+ = z(i), and the
+    measurement y = z(delay) (y = C x with no delay)."""
+    if measurement_delay_samples < 0:
+        raise ValueError(
+            f"measurement_delay_samples must be >= 0, got {measurement_delay_samples}"
+        )
+    n, delay = model.A.shape[0], measurement_delay_samples
+    size = n + 1 + delay
+    A_a = np.zeros((size, size))
+    A_a[:n, :n], A_a[:n, n : n + 1], A_a[n, n] = model.A, model.B, 1.0
+    B_a = np.zeros((size, 1))
+    B_a[:n] = model.B
+    C_a = np.zeros((1, size))
+    if delay == 0:
+        C_a[:, :n] = model.C
+    else:
+        A_a[n + 1, :n] = model.C[0]
+        for i in range(1, delay):
+            A_a[n + 1 + i, n + i] = 1.0
+        C_a[0, size - 1] = 1.0
     return A_a, B_a, C_a
 
 
@@ -153,27 +191,33 @@ def steady_targets(model: LinearDesignModel) -> tuple[np.ndarray, float]:
 
 
 def design_offset_free_lqg(
-    model: LinearDesignModel, weights: OffsetFreeLqgWeights
+    model: LinearDesignModel, weights: OffsetFreeLqgWeights, measurement_delay_samples: int = 0
 ) -> OffsetFreeLqgDesign:
-    """LQR and steady Kalman gains for ``model`` with an input-disturbance estimate."""
+    """LQR and steady Kalman gains for ``model`` with an input-disturbance estimate, for a
+    measurement ``measurement_delay_samples`` ticks old."""
     n = model.A.shape[0]
     N_x, N_u = steady_targets(model)
     state_scale = _output_scaled_identity(N_x)
     Q = weights.output_error_weight_per_m2 * (
         model.C.T @ model.C + weights.state_weight_fraction * state_scale
     )
-    R = np.array([[weights.command_weight_per_m2]])
+    # Weights on the command's height equivalent g u, with g the DC gain (m per command unit),
+    # 1 / N_u; an integrating model (N_u = 0) has no finite g and keeps the command's own units.
+    height_per_command = 1.0 / N_u if N_u != 0.0 else 1.0
+    R = np.array([[weights.command_weight_per_m2 * height_per_command**2]])
     K, _ = DiscreteTimeLinearQuadraticRegulator(model.A, model.B, Q, R)
-    A_a, B_a, C_a = augment_with_input_disturbance(model)
-    W = np.zeros((n + 1, n + 1))
+    A_a, B_a, C_a = augment_for_estimation(model, measurement_delay_samples)
+    # The delayed heights are exact copies: no process noise of their own.
+    W = np.zeros_like(A_a)
     W[:n, :n] = weights.process_noise_m2 * state_scale
-    W[n, n] = weights.disturbance_noise_m2
+    W[n, n] = weights.disturbance_noise_m2 / height_per_command**2
     V = np.array([[weights.measurement_noise_m2]])
     # The filter's prior covariance solves the dual (estimation) Riccati equation.
     P = DiscreteAlgebraicRiccatiEquation(A_a.T, C_a.T, W, V)
     M = P @ C_a.T / (C_a @ P @ C_a.T + V)[0, 0]
     return OffsetFreeLqgDesign(
         model=model,
+        measurement_delay_samples=measurement_delay_samples,
         K=K,
         M=M,
         augmented_A=A_a,
@@ -199,6 +243,21 @@ def closed_loop_poles(design: OffsetFreeLqgDesign) -> dict[str, np.ndarray]:
         "regulator": np.linalg.eigvals(model.A - model.B @ design.K),
         "estimator": np.linalg.eigvals(A_a - A_a @ design.M @ C_a),
     }
+
+
+def controller_state_space(design: OffsetFreeLqgDesign):
+    """(A_c, B_c, C_c, D_c) of the unsaturated controller from the measured height deviation y
+    to the command deviation u at a constant reference (Δr = 0), with the predicted estimate as
+    state: z̄ = z + M (y - C_a z), u = -F z̄, z+ = A_a z̄ + B_a u, where F = [K, 1, 0...]
+    (the disturbance estimate is subtracted from the command). The sign is the controller's own
+    (u = C_c z + D_c y), as ``analysis.stability_margins`` expects."""
+    size = design.augmented_A.shape[0]
+    n = design.model.A.shape[0]
+    F = np.zeros((1, size))
+    F[0, :n], F[0, n] = design.K[0], 1.0
+    correct = np.eye(size) - design.M @ design.augmented_C
+    closed = design.augmented_A - design.augmented_B @ F
+    return closed @ correct, closed @ design.M, -F @ correct, -F @ design.M
 
 
 @building_expressions
@@ -230,8 +289,8 @@ def add_offset_free_lqg(
             estimate and held command are the model's equilibrium at this height.
         name: the controller's name.
 
-    The state is [x̂⁻ (n), d̂, held command deviation, inlet and outlet currents], stored as
-    offsets from that start (a SymbolicVectorSystem's default state is zero).
+    The state is [x̂⁻ (n), d̂, delayed heights, held command deviation, inlet and outlet
+    currents], stored as offsets from that start (a SymbolicVectorSystem's default state is zero).
     The command changes only at ticks and takes effect right after the tick that read the
     measurement.
     """
@@ -239,12 +298,13 @@ def add_offset_free_lqg(
     n = model.A.shape[0]
     low, high = (c - model.input_operating_point for c in allocation.command_range)
     start_deviation = initial_height_m - model.output_operating_point_m
-    start_state = np.concatenate([design.state_per_reference * start_deviation, [0.0]])
+    start_state = design.estimator_state_at(start_deviation)
+    size = start_state.size
     start_command = float(np.clip(design.command_per_reference * start_deviation, low, high))
-    predicted_offset = MakeVectorVariable(n + 1, "x_hat_offset")
+    predicted_offset = MakeVectorVariable(size, "x_hat_offset")
     held_command_offset = Variable("held_command_offset")
-    # [x̂⁻, d̂] before this tick's correction
-    predicted = np.array([start_state[k] + predicted_offset[k] for k in range(n + 1)])
+    # [x̂⁻, d̂, delayed heights] before this tick's correction
+    predicted = np.array([start_state[k] + predicted_offset[k] for k in range(size)])
     held_command = start_command + held_command_offset
     start_currents = [
         float(c) for c in allocation.currents(model.input_operating_point + start_command)

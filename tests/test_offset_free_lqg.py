@@ -15,6 +15,7 @@ from maskless.systems.offset_free_lqg import (
     LinearDesignModel,
     OffsetFreeLqgWeights,
     closed_loop_poles,
+    controller_state_space,
     design_offset_free_lqg,
     make_offset_free_lqg,
     steady_targets,
@@ -49,12 +50,17 @@ def design():
     return design_offset_free_lqg(scalar_model(), WEIGHTS)
 
 
+# The scalar model's DC gain b / (1 - a): the command weight and disturbance noise are given for
+# the command's height equivalent, g u.
+G = B_ / (1 - A_)
+
+
 def test_lqr_gain_is_the_scalar_dare_solution(design):
-    # N_x = 1, so Q = w_y (1 + fraction).
+    # N_x = 1, so Q = w_y (1 + fraction); R = w_u g².
     Q = np.array([[1.0 * (1 + 0.1)]])
-    R = np.array([[0.5]])
-    P = scipy.linalg.solve_discrete_are(np.array([[A_]]), np.array([[B_]]), Q, R)[0, 0]
-    assert design.K[0, 0] == pytest.approx(B_ * P * A_ / (0.5 + B_ * P * B_), rel=1e-9)
+    r = 0.5 * G**2
+    P = scipy.linalg.solve_discrete_are(np.array([[A_]]), np.array([[B_]]), Q, np.array([[r]]))
+    assert design.K[0, 0] == pytest.approx(B_ * P * A_ / (r + B_ * P * B_), rel=1e-9)
 
 
 def test_steady_targets_closed_form():
@@ -67,7 +73,7 @@ def test_filter_gain_from_scipy_riccati(design):
     A_a = np.array([[A_, B_], [0.0, 1.0]])
     C_a = np.array([[1.0, 0.0]])
     np.testing.assert_allclose(design.augmented_A, A_a)
-    W = np.diag([1e-4, 1e-3])
+    W = np.diag([1e-4, 1e-3 / G**2])
     V = np.array([[1e-2]])
     P = scipy.linalg.solve_discrete_are(A_a.T, C_a.T, W, V)
     M = P @ C_a.T @ np.linalg.inv(C_a @ P @ C_a.T + V)
@@ -79,6 +85,39 @@ def test_closed_loop_poles_are_stable(design):
     assert np.all(np.abs(poles["regulator"]) < 1)
     assert np.all(np.abs(poles["estimator"]) < 1)
     assert poles["regulator"][0] == pytest.approx(A_ - B_ * design.K[0, 0])
+
+
+def delayed_scalar_plant(delay):
+    """x+ = a x + b u, y = x(k - delay), written out by hand."""
+    size = 1 + delay
+    A = np.zeros((size, size))
+    A[0, 0] = A_
+    for i in range(delay):
+        A[i + 1, i] = 1.0
+    B = np.zeros((size, 1))
+    B[0, 0] = B_
+    C = np.zeros((1, size))
+    C[0, -1] = 1.0
+    return A, B, C
+
+
+@pytest.mark.parametrize("delay", [0, 1, 3])
+def test_loop_poles_separate_into_regulator_and_estimator(delay):
+    # Separation principle on the delayed plant: the loop's poles are eig(A - B K), the
+    # estimator's eig(A_a - A_a M C_a), and the plant's uncontrollable delay states (at 0).
+    design = design_offset_free_lqg(scalar_model(), WEIGHTS, measurement_delay_samples=delay)
+    A_c, B_c, C_c, D_c = controller_state_space(design)
+    A_p, B_p, C_p = delayed_scalar_plant(delay)
+    loop = np.block([[A_p + B_p @ D_c @ C_p, B_p @ C_c], [B_c @ C_p, A_c]])
+    poles = closed_loop_poles(design)
+    expected = np.concatenate([poles["regulator"], poles["estimator"], np.zeros(delay)])
+    # Characteristic polynomials, not eigenvalues: repeated poles at 0 are ill-conditioned.
+    np.testing.assert_allclose(np.poly(loop), np.real(np.poly(expected)), atol=1e-10)
+
+
+def test_negative_measurement_delay_is_refused():
+    with pytest.raises(ValueError, match="measurement_delay_samples"):
+        design_offset_free_lqg(scalar_model(), WEIGHTS, measurement_delay_samples=-1)
 
 
 def closed_loop(design, allocation, disturbance, reference):

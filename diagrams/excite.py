@@ -1,0 +1,308 @@
+"""Excite the plant open loop for identification: record it to MCAP, plot it and summarise it.
+
+Drives the inlet valve (outlet shut) with the paper's uniform white noise (Eq. 22-23), a PRBS or a
+Schroeder multisine about an offset current, clipped to the valve's [0, saturation] range as the
+authors clipped theirs, while both cameras, their local Kalman filters and the fusion watch the
+head. Writes DIR/run.mcap with the topics `maskless simulate` writes (the command topic carries the
+excitation; the reference topic holds the resting height, as nothing is commanded), DIR/run.png,
+and prints the signal's standard deviation (against A/sqrt(3) for uniform noise), its crest factor
+and how much of it was clipped. `maskless identify --input DIR/run.mcap --ts PERIOD` then fits a
+model to the recording.
+"""
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource
+
+from maskless.analysis.recording import write_recording
+from maskless.assets.loader import ConfigError
+from maskless.diagrams.closed_loop import (
+    ClosedLoop,
+    NominalPneumatic,
+    add_plant,
+    add_sensing_chain,
+    export_and_log,
+)
+from maskless.diagrams.config import (
+    SimulationConfig,
+    load_simulation_config,
+    validate_simulation_config,
+)
+from maskless.diagrams.simulate import (
+    SimulationRun,
+    plot_run,
+    recording_channels,
+    simulate_loop,
+)
+from maskless.systems.excitation import (
+    ExcitationSignal,
+    add_excitation_source,
+    clip_to_valve_range,
+    clipped_fraction,
+    excitation_signal,
+    theoretical_uniform_std,
+)
+from maskless.systems.units import a_to_ma, ma_to_a
+
+USER_ERRORS = (ConfigError, FileNotFoundError, ValueError)
+
+SIGNALS = ("uniform", "prbs", "multisine")
+
+
+def build_excitation_loop(
+    config: SimulationConfig, signal: ExcitationSignal, record: bool = True
+) -> ClosedLoop:
+    """The plant driven open loop by ``signal`` on its inlet (outlet shut), watched by the
+    cameras, local filters and fusion; outputs and logs as ``build_closed_loop``'s, logged at the
+    signal's sample period. ``controller`` is "excitation", and model and design are None."""
+    builder = DiagramBuilder()
+    nominal = NominalPneumatic.of(config) if config.plant == "pneumatic" else None
+    plant = add_plant(builder, config, nominal)
+    inlet = add_excitation_source(builder, signal, name="excitation")
+    builder.Connect(inlet, plant.inlet)
+    outlet = builder.AddNamedSystem("outlet_valve_shut", ConstantVectorSource([0.0]))
+    if plant.outlet is not None:
+        builder.Connect(outlet.get_output_port(), plant.outlet)
+    resting = builder.AddNamedSystem("reference", ConstantVectorSource([plant.start_height_m]))
+    sensing = add_sensing_chain(builder, config, plant.head_height, plant.start_height_m)
+    loggers = export_and_log(
+        builder,
+        config,
+        sensing,
+        {
+            "reference_head_height_m": resting.get_output_port(),
+            "head_height_m": plant.head_height,
+            "inlet_valve_current_a": inlet,
+            "outlet_valve_current_a": outlet.get_output_port(),
+        },
+        signal.sample_period_s,
+        record,
+    )
+    diagram = builder.Build()
+    plant_name = config.plant.split(":")[0]
+    diagram.set_name(f"{plant_name}_excitation")
+    return ClosedLoop(
+        diagram=diagram,
+        plant=plant_name,
+        controller="excitation",
+        model=None,
+        design=None,
+        start_height_m=plant.start_height_m,
+        sensor_names=sensing.sensor_names,
+        loggers=loggers,
+    )
+
+
+def design_excitation(
+    kind: str,
+    amplitude_a: float,
+    offset_a: float,
+    duration_s: float,
+    sample_period_s: float,
+    seed: int,
+    valve_range_a: tuple[float, float],
+    clock_periods: int = 1,
+    band_hz: tuple[float, float] | None = None,
+) -> tuple[ExcitationSignal, ExcitationSignal]:
+    """(designed, clipped to ``valve_range_a``) excitation of the named kind."""
+    if kind not in SIGNALS:
+        raise ValueError(f"--signal {kind!r}: expected one of {', '.join(SIGNALS)}")
+    options = {}
+    if kind == "prbs":
+        options["clock_periods"] = clock_periods
+    if kind == "multisine" and band_hz is not None:
+        options["frequency_band_hz"] = band_hz
+    designed = excitation_signal(
+        kind,
+        amplitude=amplitude_a,
+        duration_s=duration_s,
+        sample_period_s=sample_period_s,
+        seed=seed,
+        offset=offset_a,
+        **options,
+    )
+    return designed, clip_to_valve_range(designed, *valve_range_a)
+
+
+def excitation_summary(
+    designed: ExcitationSignal,
+    applied: ExcitationSignal,
+    amplitude_a: float,
+    offset_a: float,
+    valve_range_a: tuple[float, float],
+    run: SimulationRun,
+) -> dict:
+    """The signal's statistics (mA) and what the head and fused estimate did (mm)."""
+    head = run.signals["head_height_m"].values[0]
+    fused = run.signals["fusion.estimated_state"].values[0]
+    summary = {
+        "plant": run.closed_loop.plant,
+        "signal": designed.kind,
+        "samples": applied.num_samples,
+        "sample_period_s": applied.sample_period_s,
+        "amplitude_ma": a_to_ma(amplitude_a),
+        "offset_ma": a_to_ma(offset_a),
+        "mean_ma": a_to_ma(float(np.mean(designed.values))),
+        "std_ma": a_to_ma(designed.std()),
+        "crest_factor": designed.crest_factor(),
+        "clipped_fraction": clipped_fraction(designed, *valve_range_a),
+        "applied_std_ma": a_to_ma(applied.std()),
+        "applied_crest_factor": applied.crest_factor(),
+        "head_height_mm": {"min": 1e3 * float(head.min()), "max": 1e3 * float(head.max())},
+        "fused_error_std_mm": 1e3 * float(np.std(fused - head)),
+        "wall_time_s": run.wall_time_s,
+    }
+    if designed.kind == "uniform":
+        summary["uniform_theoretical_std_ma"] = a_to_ma(theoretical_uniform_std(amplitude_a))
+    return summary
+
+
+def format_excitation_summary(summary: dict) -> str:
+    lines = [
+        f"maskless excite: {summary['signal']} on the {summary['plant']} plant's inlet, "
+        f"{summary['samples']} samples at {summary['sample_period_s']:.4g} s",
+        f"  offset {summary['offset_ma']:.1f} mA, amplitude {summary['amplitude_ma']:.1f} mA, "
+        f"mean {summary['mean_ma']:.1f} mA",
+        f"  std {summary['std_ma']:.2f} mA"
+        + (
+            f" (A/sqrt(3) = {summary['uniform_theoretical_std_ma']:.2f} mA, Eq. 23)"
+            if "uniform_theoretical_std_ma" in summary
+            else ""
+        ),
+        f"  crest factor {summary['crest_factor']:.3f} designed, "
+        f"{summary['applied_crest_factor']:.3f} after clipping "
+        f"({100 * summary['clipped_fraction']:.1f} % of samples clipped)",
+        f"  head height {summary['head_height_mm']['min']:.2f}-"
+        f"{summary['head_height_mm']['max']:.2f} mm; fused estimate error std "
+        f"{summary['fused_error_std_mm']:.3f} mm",
+        f"  wall time {summary['wall_time_s']:.2f} s",
+        "Files:",
+    ]
+    lines += [f"  {name}: {path}" for name, path in summary["files"].items()]
+    return "\n".join(lines)
+
+
+def _band(text: str) -> tuple[float, float]:
+    try:
+        low, high = (float(part) for part in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected LOW:HIGH in Hz, e.g. 0.01:1"
+        ) from None
+    return low, high
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The flags of `maskless excite`."""
+    parser.add_argument("--signal", choices=SIGNALS, default="uniform", help="default uniform")
+    parser.add_argument(
+        "--amplitude",
+        type=float,
+        default=50.0,
+        metavar="MA",
+        help="half-width of the current excursion, mA (default 50)",
+    )
+    parser.add_argument(
+        "--offset",
+        type=float,
+        default=None,
+        metavar="MA",
+        help="centre current, mA (default: mid-way between the inlet's starting and saturation "
+        "currents)",
+    )
+    parser.add_argument(
+        "--duration", type=float, default=600.0, metavar="S", help="seconds (default 600)"
+    )
+    parser.add_argument(
+        "--period",
+        type=float,
+        default=None,
+        metavar="S",
+        help="sample period of the excitation and the recording, s (default: the controller's, "
+        "1/15 s)",
+    )
+    parser.add_argument(
+        "--clock-periods",
+        type=int,
+        default=1,
+        metavar="N",
+        help="prbs: samples each bit is held (default 1)",
+    )
+    parser.add_argument(
+        "--band",
+        type=_band,
+        default=None,
+        metavar="LOW:HIGH",
+        help="multisine: frequency band in Hz (default: the whole grid up to Nyquist)",
+    )
+    parser.add_argument("--seed", type=int, default=None, metavar="N", help="default: the config's")
+    parser.add_argument(
+        "--plant",
+        default=None,
+        metavar="PLANT",
+        help="pneumatic, paper or identified:MODEL.yaml (default: the config's, pneumatic)",
+    )
+    parser.add_argument(
+        "--config", type=Path, default=None, metavar="FILE.yaml", help="YAML overriding defaults"
+    )
+    parser.add_argument(
+        "--out", type=Path, default=Path("excitation"), metavar="DIR", help="default ./excitation"
+    )
+    parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+
+
+def run_excitation(args: argparse.Namespace) -> dict:
+    """Designs, runs and records the experiment ``args`` describe; returns the summary."""
+    config = load_simulation_config(args.config)
+    if args.seed is not None:
+        config.random_seed = args.seed
+    if args.plant is not None:
+        config.plant = args.plant
+    if not (math.isfinite(args.duration) and args.duration > 0):
+        raise ValueError(f"--duration {args.duration}: expected a positive number of seconds")
+    config.duration_s = args.duration
+    try:
+        validate_simulation_config(config)
+    except ConfigError as error:
+        raise ConfigError(f"command line (--seed/--plant/--duration): {error}") from error
+    inlet = config.pneumatic.inlet
+    valve_range_a = (0.0, inlet.saturation_current_a)
+    offset_a = (
+        0.5 * (inlet.starting_current_a + inlet.saturation_current_a)
+        if args.offset is None
+        else ma_to_a(args.offset)
+    )
+    period_s = config.offset_free_lqg.sample_period_s if args.period is None else args.period
+    designed, applied = design_excitation(
+        args.signal,
+        ma_to_a(args.amplitude),
+        offset_a,
+        args.duration,
+        period_s,
+        config.random_seed,
+        valve_range_a,
+        clock_periods=args.clock_periods,
+        band_hz=args.band,
+    )
+    run = simulate_loop(build_excitation_loop(config, applied), config)
+    summary = excitation_summary(
+        designed, applied, ma_to_a(args.amplitude), offset_a, valve_range_a, run
+    )
+    args.out.mkdir(parents=True, exist_ok=True)
+    mcap_path, png_path = args.out / "run.mcap", args.out / "run.png"
+    write_recording(mcap_path, recording_channels(run))
+    plot_run(run, png_path, show_tolerance=False)
+    summary["files"] = {"recording": str(mcap_path), "plot": str(png_path)}
+    return summary
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """`maskless excite`: returns the process exit code."""
+    summary = run_excitation(args)
+    print(json.dumps(summary) if args.json else format_excitation_summary(summary))
+    return 0

@@ -1,0 +1,93 @@
+import json
+import math
+
+import numpy as np
+import pytest
+
+from maskless.analysis.recording import read_recording
+from maskless.diagrams.cli import main
+from maskless.diagrams.config import load_simulation_config
+from maskless.diagrams.excite import build_excitation_loop, design_excitation
+from maskless.diagrams.simulate import simulate_loop
+from maskless.systems.excitation import ExcitationSignal
+
+PERIOD_S = 1.0 / 15.0
+
+
+def test_the_recorded_command_is_the_designed_signal():
+    config = load_simulation_config()
+    config.duration_s = 5.0
+    values = np.linspace(0.07, 0.16, 75)
+    signal = ExcitationSignal(np.arange(75) * PERIOD_S, values, PERIOD_S, "ramp")
+    loop = build_excitation_loop(config, signal)
+    assert loop.diagram.get_name() == "pneumatic_excitation"
+    run = simulate_loop(loop, config)
+    command = run.signals["inlet_valve_current_a"]
+    # Logged at the signal's period: sample k holds the k-th value.
+    np.testing.assert_array_equal(command.values[0][:75], values[: command.values.shape[1]])
+    assert np.all(run.signals["outlet_valve_current_a"].values == 0.0)
+    # Nothing is commanded: the reference stays at the resting height.
+    reference = run.signals["reference_head_height_m"].values[0]
+    assert np.all(reference == pytest.approx(loop.start_height_m))
+
+
+def test_open_loop_head_rises_with_more_inlet_current():
+    config = load_simulation_config()
+    config.duration_s = 40.0
+    heights = []
+    for current_a in (0.10, 0.15):
+        signal = ExcitationSignal([0.0, PERIOD_S], [current_a, current_a], PERIOD_S, "step")
+        run = simulate_loop(build_excitation_loop(config, signal, record=True), config)
+        heights.append(run.signals["head_height_m"].values[0][-1])
+    assert heights[1] > heights[0] + 0.005
+
+
+def test_design_refuses_an_unknown_signal():
+    with pytest.raises(ValueError, match="--signal 'chirp'"):
+        design_excitation("chirp", 0.05, 0.11, 10.0, PERIOD_S, 0, (0.0, 0.165))
+
+
+def test_uniform_noise_std_is_a_over_root_3_and_recording_has_simulate_topics(tmp_path, capsys):
+    out = tmp_path / "ex"
+    args = ["excite", "--signal", "uniform", "--amplitude", "50", "--duration", "120"]
+    assert main([*args, "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    # Eq. 23: sigma = A / sqrt(3); 1800 samples estimate it within a few per cent.
+    assert summary["uniform_theoretical_std_ma"] == pytest.approx(50 / math.sqrt(3))
+    assert summary["std_ma"] == pytest.approx(50 / math.sqrt(3), rel=0.05)
+    recording = read_recording(out / "run.mcap")
+    _, current = recording.topic_arrays("/controller/command", "current_a")
+    # The log also holds the instant the run ends, when the last sample is still held.
+    current = current[: summary["samples"]]
+    deviation = current - current.mean()
+    crest = np.max(np.abs(deviation)) / np.sqrt(np.mean(deviation**2))
+    assert summary["applied_crest_factor"] == pytest.approx(crest, rel=1e-9)
+    # A long uniform sample peaks near A = sqrt(3) sigma: its crest factor is close to sqrt(3).
+    assert crest == pytest.approx(math.sqrt(3), rel=0.03)
+    simulate_out = tmp_path / "sim"
+    assert main(["simulate", "--duration", "2", "--out", str(simulate_out)]) == 0
+    assert set(recording.messages) == set(read_recording(simulate_out / "run.mcap").messages)
+    assert (out / "run.png").stat().st_size > 10_000
+
+
+def test_excitation_beyond_the_valve_range_is_clipped(tmp_path, capsys):
+    out = tmp_path / "ex"
+    args = ["excite", "--signal", "prbs", "--amplitude", "50", "--offset", "150"]
+    assert main([*args, "--duration", "30", "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    _, current = read_recording(out / "run.mcap").topic_arrays("/controller/command", "current_a")
+    current = current[: summary["samples"]]
+    # Half the PRBS's levels (200 mA) exceed the 165 mA saturation and are clipped to it.
+    assert current.max() == pytest.approx(0.165)
+    assert summary["clipped_fraction"] == pytest.approx(np.mean(current == current.max()))
+    assert 0.3 < summary["clipped_fraction"] < 0.7
+
+
+def test_bad_arguments_are_refused(tmp_path, capsys):
+    out = tmp_path / "ex"
+    assert main(["excite", "--duration", "-1", "--out", str(out)]) == 2
+    assert "--duration -1" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["excite", "--band", "1-2"])
+    assert "LOW:HIGH" in capsys.readouterr().err
+    assert not out.exists()

@@ -21,7 +21,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink

@@ -4,9 +4,10 @@ Design is pure (``design_offset_free_lqg``): the plant's discrete linear model (
 ``Linearize`` of the pneumatic plant, or an identified model) is augmented with a constant input
 disturbance d, x+ = A x + B (u + d), and, for the estimator, with the measurement's delay: the
 fused height the controller reads at a tick is the head's height some ticks ago (the camera's
-latency and one tick for each filter stage), so the estimator carries a chain of past heights and
-reads the oldest, y = C x(k - delay). Leaving that delay out of the design overshoots. Drake's DiscreteTimeLinearQuadraticRegulator gives the
-state feedback K on (A, B); Drake's DiscreteAlgebraicRiccatiEquation gives the steady Kalman
+latency, and one tick because the controller reads the filters' state before its own tick), so the
+estimator carries a chain of past heights and reads the oldest, y = C x(k - delay); leaving the
+delay out of the design overshoots. Drake's DiscreteTimeLinearQuadraticRegulator gives the state
+feedback K on (A, B); Drake's DiscreteAlgebraicRiccatiEquation gives the steady Kalman
 covariance of the augmented model, from which the filter gain M = P Cᵀ (C P Cᵀ + V)⁻¹ corrects the
 estimate with the measurement of the same tick (the predictor gain A P Cᵀ (...)⁻¹ that
 ``DiscreteTimeSteadyStateKalmanFilter`` returns would add a sample of delay).

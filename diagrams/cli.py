@@ -22,6 +22,10 @@ _COMMANDS = {
         "maskless.diagrams.identify",
         "identify models from a recorded experiment and judge them",
     ),
+    "analyze": (
+        "maskless.diagrams.analyze",
+        "operating range of the plant; stability margins and robustness of the controllers",
+    ),
     "workflow": (
         "maskless.diagrams.paper_workflow",
         "excite, identify, design and simulate: the paper's workflow end to end",

@@ -1,0 +1,164 @@
+"""The pneumatic plant's operating range: where each valve current holds the head, and how the
+plant behaves there.
+
+For each coil current of one valve (the other held), ``operating_range`` gives the steady state
+(``pneumatic_plant.equilibrium_state``: lift and bladder gauge pressure) and Drake's ``Linearize``
+of the plant there (``pneumatic_design.linearize_pneumatic_plant``): its DC gain from the coil
+current to the lift and the time constants of its modes. Pure functions on the plant's parameters;
+``analysis_plots.plot_operating_range`` draws the result.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from maskless.systems.pneumatic_design import linearize_pneumatic_plant
+from maskless.systems.pneumatic_physics import GAUGE_PRESSURE, LIFT, PneumaticParameters
+from maskless.systems.pneumatic_plant import equilibrium_state
+
+VALVES = ("inlet", "outlet")
+
+
+@dataclass(frozen=True)
+class OperatingRange:
+    """Steady state and linearisation of the plant along one valve's current range.
+
+    Attributes:
+        valve: "inlet" or "outlet", the valve whose current is swept.
+        held_current_a: the other valve's coil current, held constant (A).
+        currents_a: the swept coil currents (A), increasing (N,).
+        lift_m: steady lift of the head at each current (m) (N,).
+        gauge_pressure_pa: steady bladder gauge pressure (Pa) (N,).
+        dc_gain_m_per_a: steady lift per unit coil current of the linearised plant, -C A⁻¹ B
+            (m/A, the same number in mm/mA) (N,).
+        time_constants_s: time constants -1/Re(λ) of the linearised plant's modes (a complex
+            pair counted once), slowest first, one row per current (N, modes).
+    """
+
+    valve: str
+    held_current_a: float
+    currents_a: np.ndarray
+    lift_m: np.ndarray
+    gauge_pressure_pa: np.ndarray
+    dc_gain_m_per_a: np.ndarray
+    time_constants_s: np.ndarray
+
+    @property
+    def slow_time_constant_s(self) -> np.ndarray:
+        """The slowest mode's time constant at each current (s): the bladder's fill and leak."""
+        return self.time_constants_s[:, 0]
+
+    @property
+    def lift_span_m(self) -> float:
+        """How far the swept current moves the steady lift (m)."""
+        return float(np.max(self.lift_m) - np.min(self.lift_m))
+
+
+def valve_currents_a(p: PneumaticParameters, valve: str, num_points: int) -> np.ndarray:
+    """``num_points`` coil currents evenly spaced from the valve's starting to its saturation
+    current (A).
+
+    Args:
+        p: the plant's parameters.
+        valve: "inlet" or "outlet".
+        num_points: how many currents, at least 2.
+
+    Raises:
+        ValueError: ``valve`` is unknown or ``num_points`` < 2.
+    """
+    parameters = _valve_parameters(p, valve)
+    if isinstance(num_points, bool) or not isinstance(num_points, int | np.integer):
+        raise ValueError(f"num_points = {num_points!r}: expected an integer >= 2")
+    if num_points < 2:
+        raise ValueError(f"num_points = {num_points}: expected an integer >= 2")
+    return np.linspace(parameters.starting_current_a, parameters.saturation_current_a, num_points)
+
+
+def mode_time_constants_s(A: np.ndarray) -> np.ndarray:
+    """Time constants -1/Re(λ) of the modes of x' = A x (s), slowest first.
+
+    A complex pair is one mode (its envelope's time constant); a mode on the imaginary axis has
+    an infinite time constant, an unstable one a negative time constant.
+
+    Args:
+        A: a real square state matrix (1/s).
+    """
+    eigenvalues = np.linalg.eigvals(np.asarray(A, dtype=float))
+    decay = -eigenvalues[eigenvalues.imag >= 0.0].real
+    # A mode on the imaginary axis never decays (of either sign of zero).
+    tau = np.full(decay.shape, np.inf)
+    np.divide(1.0, decay, out=tau, where=decay != 0.0)
+    # Slowest first: infinite, then the largest positive; unstable (negative) modes last.
+    return np.array(sorted(tau, key=lambda t: (t < 0, -t)))
+
+
+def operating_range(
+    p: PneumaticParameters,
+    valve: str,
+    currents_a,
+    held_current_a: float,
+) -> OperatingRange:
+    """The steady state and linearisation at each coil current of ``valve``.
+
+    Args:
+        p: the plant's parameters.
+        valve: "inlet" or "outlet", the valve whose current is swept.
+        currents_a: its coil currents (A), increasing.
+        held_current_a: the other valve's coil current (A), held throughout.
+
+    Raises:
+        ValueError: ``valve`` is unknown, or ``currents_a`` is empty or not increasing.
+    """
+    _valve_parameters(p, valve)
+    currents = np.asarray(currents_a, dtype=float)
+    if currents.ndim != 1 or currents.size == 0 or not np.all(np.diff(currents) > 0):
+        raise ValueError(f"currents_a = {currents}: expected increasing coil currents (A)")
+    lifts, pressures, gains, time_constants = [], [], [], []
+    for current in currents:
+        inlet, outlet = (current, held_current_a) if valve == "inlet" else (held_current_a, current)
+        state = equilibrium_state(p, inlet, outlet)
+        A, B, C = linearize_pneumatic_plant(p, inlet, outlet, valve)
+        lifts.append(state[LIFT])
+        pressures.append(state[GAUGE_PRESSURE])
+        gains.append(float((-C @ np.linalg.solve(A, B))[0, 0]))
+        time_constants.append(mode_time_constants_s(A))
+    return OperatingRange(
+        valve=valve,
+        held_current_a=float(held_current_a),
+        currents_a=currents,
+        lift_m=np.array(lifts),
+        gauge_pressure_pa=np.array(pressures),
+        dc_gain_m_per_a=np.array(gains),
+        time_constants_s=np.array(time_constants),
+    )
+
+
+def default_operating_ranges(p: PneumaticParameters, num_points: int) -> dict[str, OperatingRange]:
+    """Both valves over their current ranges: the inlet with the outlet shut; the outlet with the
+    inlet fully open.
+
+    The outlet is swept against the full inlet because that is where it holds the widest range
+    of lifts: with the inlet shut (as the split-range allocation drives it) the bladder's leak
+    breathes in from the room as fast as the outlet draws air out below atmosphere, so the outlet
+    then holds the head at most about 2 mm below zero lift (1.9 mm fully open, with the shipped
+    parameters); there it acts in transients.
+
+    Args:
+        p: the plant's parameters.
+        num_points: currents per valve, at least 2.
+    """
+    return {
+        "inlet": operating_range(p, "inlet", valve_currents_a(p, "inlet", num_points), 0.0),
+        "outlet": operating_range(
+            p,
+            "outlet",
+            valve_currents_a(p, "outlet", num_points),
+            p.inlet.saturation_current_a,
+        ),
+    }
+
+
+def _valve_parameters(p: PneumaticParameters, valve: str):
+    if valve not in VALVES:
+        raise ValueError(f"valve = {valve!r}: expected 'inlet' or 'outlet'")
+    return p.inlet if valve == "inlet" else p.outlet

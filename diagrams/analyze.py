@@ -19,6 +19,7 @@ import math
 from pathlib import Path
 
 from maskless.assets.loader import ConfigError
+from maskless.diagrams.cli import add_config_argument
 
 # What `maskless analyze` reports as a message rather than a traceback.
 USER_ERRORS = (ConfigError, FileNotFoundError)
@@ -81,13 +82,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
             metavar="DIR",
             help="where the JSON and the plots go (default ./analysis_out)",
         )
-        sub.add_argument(
-            "--config",
-            type=Path,
-            default=None,
-            metavar="FILE.yaml",
-            help="YAML overriding the shipped defaults (assets/simulation.yaml)",
-        )
+        add_config_argument(sub)
         sub.add_argument(
             "--json", action="store_true", help="also print the JSON report as one line"
         )

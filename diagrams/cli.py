@@ -4,6 +4,7 @@ radiotherapy. Each subcommand's --help says more."""
 import argparse
 import importlib
 import sys
+from pathlib import Path
 
 # Command -> (module, summary). A command module has a docstring (its --help), add_arguments,
 # run_command and USER_ERRORS (the errors it reports as a message, not a traceback). Only the
@@ -31,6 +32,17 @@ _COMMANDS = {
         "excite, identify, design and simulate: the paper's workflow end to end",
     ),
 }
+
+
+def add_config_argument(parser: argparse.ArgumentParser) -> None:
+    """The --config flag every simulating or analysing command takes."""
+    parser.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        metavar="FILE.yaml",
+        help="YAML overriding the shipped defaults (assets/simulation.yaml)",
+    )
 
 
 def build_parser(argv: list[str]) -> argparse.ArgumentParser:

@@ -132,6 +132,29 @@ def load_simulation_config(path: str | Path | None = None) -> SimulationConfig:
 MAX_RANDOM_SEED = 2**32 - 1
 
 
+def load_config_with_overrides(
+    path: str | Path | None, overrides: dict[str, tuple[str, object]]
+) -> SimulationConfig:
+    """``load_simulation_config(path)`` with fields set from the command line, then validated.
+
+    Args:
+        path: the --config file, or None for the shipped defaults.
+        overrides: flag -> (field, value); a value of None leaves the field as configured.
+
+    Raises:
+        ConfigError: naming the file, or the flags, and the field that is out of range.
+    """
+    config = load_simulation_config(path)
+    for field_name, value in overrides.values():
+        if value is not None:
+            setattr(config, field_name, value)
+    try:
+        validate_simulation_config(config)
+    except ConfigError as error:
+        raise ConfigError(f"command line ({'/'.join(overrides)}): {error}") from error
+    return config
+
+
 def validate_simulation_config(config: SimulationConfig) -> None:
     """Raises ConfigError naming the first field that is unset or out of range."""
     unset = find_unset_fields(config)

@@ -12,7 +12,6 @@ model to the recording.
 
 import argparse
 import json
-import math
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +20,7 @@ from pydrake.systems.primitives import ConstantVectorSource
 
 from maskless.analysis.recording import write_recording
 from maskless.assets.loader import ConfigError
+from maskless.diagrams.cli import add_config_argument
 from maskless.diagrams.closed_loop import (
     ClosedLoop,
     NominalPneumatic,
@@ -28,11 +28,7 @@ from maskless.diagrams.closed_loop import (
     add_sensing_chain,
     export_and_log,
 )
-from maskless.diagrams.config import (
-    SimulationConfig,
-    load_simulation_config,
-    validate_simulation_config,
-)
+from maskless.diagrams.config import SimulationConfig, load_config_with_overrides
 from maskless.diagrams.simulate import (
     SimulationRun,
     plot_run,
@@ -247,9 +243,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="PLANT",
         help="pneumatic, paper or identified:MODEL.yaml (default: the config's, pneumatic)",
     )
-    parser.add_argument(
-        "--config", type=Path, default=None, metavar="FILE.yaml", help="YAML overriding defaults"
-    )
+    add_config_argument(parser)
     parser.add_argument(
         "--out", type=Path, default=Path("excitation"), metavar="DIR", help="default ./excitation"
     )
@@ -258,18 +252,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_excitation(args: argparse.Namespace) -> dict:
     """Designs, runs and records the experiment ``args`` describe; returns the summary."""
-    config = load_simulation_config(args.config)
-    if args.seed is not None:
-        config.random_seed = args.seed
-    if args.plant is not None:
-        config.plant = args.plant
-    if not (math.isfinite(args.duration) and args.duration > 0):
-        raise ValueError(f"--duration {args.duration}: expected a positive number of seconds")
-    config.duration_s = args.duration
-    try:
-        validate_simulation_config(config)
-    except ConfigError as error:
-        raise ConfigError(f"command line (--seed/--plant/--duration): {error}") from error
+    config = load_config_with_overrides(
+        args.config,
+        {
+            "--seed": ("random_seed", args.seed),
+            "--plant": ("plant", args.plant),
+            "--duration": ("duration_s", args.duration),
+        },
+    )
     inlet = config.pneumatic.inlet
     valve_range_a = (0.0, inlet.saturation_current_a)
     offset_a = (

@@ -22,6 +22,7 @@ from pathlib import Path
 
 from maskless.assets.loader import ConfigError
 from maskless.diagrams import excite, identify, simulate
+from maskless.diagrams.cli import add_config_argument
 from maskless.diagrams.excite import SIGNALS
 
 USER_ERRORS = (ConfigError, FileNotFoundError, ValueError, identify.RecordError)
@@ -159,7 +160,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--duration", type=float, default=120.0, metavar="S", help="closed loop, s (default 120)"
     )
     parser.add_argument("--seed", type=int, default=0, metavar="N", help="default 0")
-    parser.add_argument("--config", type=Path, default=None, metavar="FILE.yaml")
+    add_config_argument(parser)
     parser.add_argument("--json", action="store_true", help="print the summaries as one JSON")
 
 

@@ -33,12 +33,9 @@ from maskless.analysis.recording import (
 from maskless.analysis.summary import format_summary, summarize
 from maskless.assets.loader import ConfigError
 from maskless.diagrams.background import BackgroundTask
+from maskless.diagrams.cli import add_config_argument
 from maskless.diagrams.closed_loop import ClosedLoop, build_closed_loop
-from maskless.diagrams.config import (
-    SimulationConfig,
-    load_simulation_config,
-    validate_simulation_config,
-)
+from maskless.diagrams.config import SimulationConfig, load_config_with_overrides
 
 # What `maskless simulate` reports as a message rather than a traceback.
 USER_ERRORS = (ConfigError, FileNotFoundError)
@@ -223,13 +220,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="DIR",
         help="where run.mcap and run.png go (default: ./out)",
     )
-    parser.add_argument(
-        "--config",
-        type=Path,
-        default=None,
-        metavar="FILE.yaml",
-        help="YAML overriding the shipped defaults (assets/simulation.yaml)",
-    )
+    add_config_argument(parser)
     parser.add_argument(
         "--plant",
         default=None,
@@ -260,21 +251,15 @@ def run_command(args: argparse.Namespace) -> int:
 
 def run_simulation(args: argparse.Namespace) -> dict:
     """Runs, records and plots the simulation ``args`` describe; returns the summary."""
-    config = load_simulation_config(args.config)
-    if args.duration is not None:
-        config.duration_s = args.duration
-    if args.seed is not None:
-        config.random_seed = args.seed
-    if args.plant is not None:
-        config.plant = args.plant
-    if args.controller is not None:
-        config.controller = args.controller
-    try:
-        validate_simulation_config(config)
-    except ConfigError as error:
-        raise ConfigError(
-            f"command line (--duration/--seed/--plant/--controller): {error}"
-        ) from error
+    config = load_config_with_overrides(
+        args.config,
+        {
+            "--duration": ("duration_s", args.duration),
+            "--seed": ("random_seed", args.seed),
+            "--plant": ("plant", args.plant),
+            "--controller": ("controller", args.controller),
+        },
+    )
 
     def report_progress(simulated_s, duration_s):
         print(f"simulated {simulated_s:.0f} / {duration_s:.0f} s", file=sys.stderr, flush=True)

@@ -19,7 +19,7 @@ import numpy as np
 from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import Simulator
 
-from maskless.analysis.plots import plot_closed_loop
+from maskless.analysis.plots import plot_closed_loop, prepare_plotting
 from maskless.analysis.recording import (
     COMMAND_TOPIC,
     FUSION_TOPIC,
@@ -32,7 +32,7 @@ from maskless.analysis.recording import (
 )
 from maskless.analysis.summary import format_summary, summarize
 from maskless.assets.loader import ConfigError
-from maskless.diagrams.background import BackgroundTask
+from maskless.diagrams.background import WarmWorker
 from maskless.diagrams.cli import add_config_argument
 from maskless.diagrams.closed_loop import ClosedLoop, build_closed_loop
 from maskless.diagrams.config import SimulationConfig, load_config_with_overrides
@@ -177,9 +177,13 @@ def recording_channels(run: SimulationRun) -> list[Channel]:
 def plot_run(run: SimulationRun, path: Path, show_tolerance: bool = True) -> Path:
     """The run's plot (see ``plot_closed_loop``), with the clinical band about the reference
     when ``show_tolerance``."""
+    return plot_closed_loop(path, **plot_arguments(run, show_tolerance))
+
+
+def plot_arguments(run: SimulationRun, show_tolerance: bool = True) -> dict:
+    """``plot_closed_loop``'s keyword arguments for the run: arrays and strings, which pickle."""
     s = run.signals
-    return plot_closed_loop(
-        path,
+    return dict(
         times_s=s["head_height_m"].times_s,
         reference_m=s["reference_head_height_m"].values[0],
         head_m=s["head_height_m"].values[0],
@@ -264,14 +268,16 @@ def run_simulation(args: argparse.Namespace) -> dict:
     def report_progress(simulated_s, duration_s):
         print(f"simulated {simulated_s:.0f} / {duration_s:.0f} s", file=sys.stderr, flush=True)
 
+    mcap_path, png_path = args.out / "run.mcap", args.out / "run.png"
+    # The plotter imports matplotlib on the second core while the loop runs, then renders while
+    # the recording is written.
+    plotter = WarmWorker(f"plotting {png_path}", prepare_plotting)
     long_run = config.duration_s >= _PROGRESS_MIN_DURATION_S
     run = run_closed_loop(config, progress=report_progress if long_run else None)
     summary = summarize(run)
     args.out.mkdir(parents=True, exist_ok=True)
-    mcap_path, png_path = args.out / "run.mcap", args.out / "run.png"
-    # The plot renders on the second core while the recording is written.
-    plotting = BackgroundTask(f"plotting {png_path}", plot_run, run, png_path)
+    plotter.submit(plot_closed_loop, png_path, **plot_arguments(run))
     write_recording(mcap_path, recording_channels(run))
-    plotting.wait()
+    plotter.wait()
     summary["files"] = {"recording": str(mcap_path), "plot": str(png_path)}
     return summary

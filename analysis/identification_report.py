@@ -220,6 +220,10 @@ def margins(figures: dict, baselines: dict, naive: dict, part_name: str) -> dict
     }
 
 
+# How a verdict that the input explains the output begins (the workflow checks for it).
+EXPLAINS_VERDICT = "The input explains the output"
+
+
 def verdict(figures: dict, baselines: dict, gains: dict, part_name: str, stable: bool) -> str:
     """Whether the input explains the output, in plain words, from one part's figures and the
     model's ``margins`` over the baselines on that part.
@@ -241,7 +245,7 @@ def verdict(figures: dict, baselines: dict, gains: dict, part_name: str, stable:
     if not stable:
         evidence += "; the model is UNSTABLE"
     if figures["fit_percent_sim"] >= EXPLAINS_SIM and gains["free_response"] >= MARGIN_SIM:
-        return f"The input explains the output: {evidence}."
+        return f"{EXPLAINS_VERDICT}: {evidence}."
     if gains["without_input"] < MARGIN_1STEP and gains["free_response"] < MARGIN_SIM:
         return f"The input explains essentially nothing of the output: {evidence}."
     return f"The input explains part of the output: {evidence}."

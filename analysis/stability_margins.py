@@ -334,10 +334,12 @@ class Margins:
     def as_dict(self) -> dict[str, float | str | None]:
         """The margins as JSON-safe values: finite floats as they are, ±inf as the strings
         "inf" / "-inf" (meaning "no crossing, unbounded"), nan as None (no such frequency)."""
-        return {name: _json_safe(value) for name, value in vars(self).items()}
+        return {name: json_safe(value) for name, value in vars(self).items()}
 
 
-def _json_safe(value: float) -> float | str | None:
+def json_safe(value: float) -> float | str | None:
+    """A float as JSON allows it: ±inf as "inf" / "-inf", nan as None."""
+    value = float(value)
     if math.isnan(value):
         return None
     if math.isinf(value):

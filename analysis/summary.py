@@ -16,6 +16,12 @@ if TYPE_CHECKING:
     from maskless.diagrams.simulate import SimulationRun
 
 
+def estimation_start_s(config, times_s) -> float:
+    """When estimates start to be judged: once the filters have forgotten their initial guess
+    (``metrics.estimation_start_s``), or half-way through a shorter run."""
+    return min(config.metrics.estimation_start_s, float(times_s[-1]) / 2)
+
+
 def summarize(run: "SimulationRun") -> dict:
     """The run's figures as a JSON-ready dict (mm, mA and s, what people read)."""
     config, loop, s = run.config, run.closed_loop, run.signals
@@ -30,8 +36,7 @@ def summarize(run: "SimulationRun") -> dict:
         tolerance_m=config.metrics.tolerance_m,
         unsettled_evaluation_delay_s=config.metrics.unsettled_evaluation_delay_s,
     )
-    # Estimates are judged once the filters have forgotten their initial guess, whatever the head.
-    start = min(config.metrics.estimation_start_s, float(times[-1]) / 2)
+    start = estimation_start_s(config, times)
     estimation = {"evaluation_start_s": start}
     for name in loop.sensor_names:
         track = s[f"{name}_filter.estimated_state"].values[0]
@@ -132,10 +137,8 @@ def _offset_free_figures(loop) -> dict:
     }
 
 
-def format_summary(summary: dict) -> str:
-    """The summary as lines a person reads."""
-    t, e = summary["tracking"], summary["estimation"]
-    reported = summary["paper_reported"]
+def tracking_lines(t: dict) -> list[str]:
+    """The tracking figures of a summary (its "tracking" section) as lines a person reads."""
     band = t["tolerance_mm"]
     settle = (
         f"settled within ±{band:g} mm after {t['settle_time_s']:.2f} s"
@@ -146,16 +149,25 @@ def format_summary(summary: dict) -> str:
     overshoot = (
         "n/a (no reference step)" if t["overshoot_mm"] is None else f"{t['overshoot_mm']:.3f} mm"
     )
+    return [
+        settle,
+        f"RMS {t['rms_error_mm']:.3f} mm, p95 {t['p95_abs_error_mm']:.3f} mm, "
+        f"max {t['max_abs_error_mm']:.3f} mm, final {t['final_error_mm']:+.3f} mm",
+        f"overshoot {overshoot}; the reference moved "
+        f"{t['reference_travel_mm']:.2f} mm, the head {t['head_travel_mm']:.4f} mm",
+    ]
+
+
+def format_summary(summary: dict) -> str:
+    """The summary as lines a person reads."""
+    t, e = summary["tracking"], summary["estimation"]
+    reported = summary["paper_reported"]
     lines = [
         f"maskless simulate: plant '{summary['plant']}', controller '{summary['controller']}', "
         f"{summary['duration_s']:g} s simulated, seed {summary['random_seed']}",
         "",
         "Tracking (true head height vs reference)",
-        f"  {settle}",
-        f"  RMS {t['rms_error_mm']:.3f} mm, p95 {t['p95_abs_error_mm']:.3f} mm, "
-        f"max {t['max_abs_error_mm']:.3f} mm, final {t['final_error_mm']:+.3f} mm",
-        f"  overshoot {overshoot}; the reference moved "
-        f"{t['reference_travel_mm']:.2f} mm, the head {t['head_travel_mm']:.4f} mm",
+        *(f"  {line}" for line in tracking_lines(t)),
         f"  the paper reports ±{reported['tracking_band_mm']:g} mm tracking, "
         f"{reported['overshoot_mm']:g} mm overshoot and ~{reported['settle_time_s']:g} s settling "
         "on its bench",

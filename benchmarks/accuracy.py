@@ -41,8 +41,8 @@ STEP_RANGE_M = (0.002, 0.010)
 # Start and target stay this far above the lowest lift the bladder holds for the drawn head.
 LIFT_MARGIN_M = 0.0015
 # ...and no higher than the lift the inlet holds at this fraction of its current span: a control
-# valve keeps a tenth of its stroke in reserve. Above it the open-loop time constant grows to
-# ~8.6 s (`maskless analyze operating-range`), and with the inlet saturated no controller reaches a
+# valve keeps a tenth of its stroke in reserve. Near full inlet the open-loop time constant grows to
+# 9.0 s (`maskless analyze operating-range`), and with the inlet saturated no controller reaches a
 # target there within 10 s.
 INLET_AUTHORITY_FRACTION = 0.9
 CONTROLLERS = ("offset-free-lqg", "paper-lqg")

@@ -103,17 +103,6 @@ def _parse_list(text: str, flag: str, convert, expected: str) -> list:
     return values
 
 
-def _number(value: float) -> float | str | None:
-    """A float as JSON allows it, as ``Margins.as_dict`` writes margins: ±inf as "inf" /
-    "-inf", nan as None."""
-    value = float(value)
-    if math.isnan(value):
-        return None
-    if math.isinf(value):
-        return "inf" if value > 0 else "-inf"
-    return value
-
-
 def _write(out: Path, name: str, report: dict, as_json: bool, summary: str) -> None:
     (out / name).write_text(json.dumps(report, indent=1))
     print(json.dumps(report) if as_json else summary)
@@ -129,6 +118,7 @@ def operating_range_report(ranges: dict) -> dict:
         ranges: valve -> ``operating_range.OperatingRange``, with "inlet" swept with the outlet
             shut (its lifts are the working range).
     """
+    from maskless.analysis.stability_margins import json_safe
     from maskless.systems.units import a_to_ma, m_to_mm
 
     valves = {}
@@ -139,8 +129,8 @@ def operating_range_report(ranges: dict) -> dict:
                 "lift_mm": m_to_mm(float(lift)),
                 "gauge_pressure_kpa": float(pressure) / 1000.0,
                 "dc_gain_mm_per_ma": float(gain),
-                "slow_time_constant_s": _number(taus[0]),
-                "time_constants_s": [_number(t) for t in taus],
+                "slow_time_constant_s": json_safe(taus[0]),
+                "time_constants_s": [json_safe(t) for t in taus],
             }
             for current, lift, pressure, gain, taus in zip(
                 sweep.currents_a,
@@ -308,6 +298,7 @@ def stability_report(paper, cases, design, plant_head_mass_kg: float) -> dict:
         design: the offset-free LQG design the cases close the loop with.
         plant_head_mass_kg: the configured plant's head mass, which the mass factors scale (kg).
     """
+    from maskless.analysis.stability_margins import json_safe
     from maskless.systems.units import m_to_mm
 
     model = design.model
@@ -327,9 +318,9 @@ def stability_report(paper, cases, design, plant_head_mass_kg: float) -> dict:
             "plant_head_mass_kg": plant_head_mass_kg,
             "latency_requirement_s": LATENCY_REQUIREMENT_S,
             "all_stable": all(entry["stable"] for entry in entries),
-            "min_gain_margin_db": _number(min(m.gain_margin_db for m in margins)),
-            "min_phase_margin_deg": _number(min(m.phase_margin_deg for m in margins)),
-            "min_delay_margin_s": _number(min(m.delay_margin_s for m in margins)),
+            "min_gain_margin_db": json_safe(min(m.gain_margin_db for m in margins)),
+            "min_phase_margin_deg": json_safe(min(m.phase_margin_deg for m in margins)),
+            "min_delay_margin_s": json_safe(min(m.delay_margin_s for m in margins)),
             "max_pole_magnitude": max(case.analysis.max_pole_magnitude for case in cases),
             "cases": entries,
         },
@@ -431,7 +422,13 @@ def _stability_inputs(args, config, allocation) -> tuple[list, list, list]:
     p = config.pneumatic
     for factor in factors:
         head = dataclasses.replace(p, head_mass_kg=factor * p.head_mass_kg)
-        low, high = (m_to_mm(lift) for lift in holdable_lift_range_m(head, allocation))
+        try:
+            low, high = (m_to_mm(lift) for lift in holdable_lift_range_m(head, allocation))
+        except ValueError:  # no steady state: the bladder cannot carry this head at all
+            raise ConfigError(
+                f"--mass-factors {args.mass_factors!r}: a {head.head_mass_kg:.2f} kg head "
+                f"(x{factor:g}) cannot be held anywhere in the bladder's travel"
+            ) from None
         for lift in lifts_mm:
             if not (math.isfinite(lift) and low <= lift <= high):
                 raise ConfigError(

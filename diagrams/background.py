@@ -83,8 +83,12 @@ class WarmWorker:
         if self._child is None:
             function(*args, **kwargs)
             return
-        self._sender.send((function, args, kwargs))
-        self._sender.close()
+        try:
+            self._sender.send((function, args, kwargs))
+        except OSError:  # the child died while warming up; ``wait`` reports how
+            pass
+        finally:
+            self._sender.close()
 
     def wait(self) -> None:
         """Blocks until the submitted work ends; raises RuntimeError if it failed."""

@@ -22,6 +22,7 @@ from pydrake.systems.primitives import (
 from pydrake.trajectories import PiecewisePolynomial
 
 from maskless.analysis.model_file import load_identified_model
+from maskless.assets.loader import ConfigError
 from maskless.diagrams.config import ReferenceConfig, SimulationConfig, model_file_of
 from maskless.systems.depth_sensor import add_depth_sensor, latency_frames
 from maskless.systems.local_kalman_filter import add_local_kalman_filter
@@ -141,6 +142,15 @@ def _paper_valve_currents_a(paper) -> tuple[float, float]:
     return ma_to_a(paper.valve_starting_current_ma), ma_to_a(paper.valve_saturation_current_ma)
 
 
+def inlet_current_range_a(config: SimulationConfig) -> tuple[float, float]:
+    """The (starting, saturation) currents of the inlet valve of ``config.plant`` (A): the
+    pneumatic plant's own valve, or the paper's valve in front of a linear model."""
+    if config.plant == "pneumatic":
+        inlet = config.pneumatic.inlet
+        return inlet.starting_current_a, inlet.saturation_current_a
+    return _paper_valve_currents_a(config.paper)
+
+
 def add_plant(
     builder: DiagramBuilder, config: SimulationConfig, nominal: "NominalPneumatic | None"
 ) -> AddedPlant:
@@ -183,7 +193,8 @@ def add_plant(
 def _offset_free_design(
     config: SimulationConfig, plant: AddedPlant, nominal: "NominalPneumatic | None"
 ):
-    """(design model, allocation) for the offset-free LQG on ``plant``."""
+    """(design, allocation) of the offset-free LQG for ``plant``: on the pneumatic plant's
+    linearisation, or on the identified model ``config.controller`` (or the plant's) names."""
     settings = config.offset_free_lqg
     if config.controller == "offset-free-lqg" and config.plant == "pneumatic":
         model = pneumatic_design_model(
@@ -192,13 +203,22 @@ def _offset_free_design(
             settings.operating_lift_m,
             settings.sample_period_s,
         )
-        return model, nominal.allocation
+        # The model's output is the head height itself.
+        design = design_offset_free_lqg(model, settings.weights, measurement_delay_samples(config))
+        return design, nominal.allocation
     if config.controller == "offset-free-lqg":
         identified, camera_height_m = plant.model, plant.camera_height_m
     else:
         identified, camera_height_m = _identified_model(config.controller), None
     model = design_model_from_identified(identified, camera_height_m)
-    return model, current_split_allocation(config.pneumatic.inlet, config.pneumatic.outlet)
+    try:
+        # An identified model's output is the fused estimate as logged at a tick, after that
+        # tick's update; the controller reads it one tick later.
+        design = design_offset_free_lqg(model, settings.weights, measurement_delay_samples=1)
+    except ValueError as error:
+        raise ConfigError(f"controller = {config.controller!r}: {error}") from None
+    allocation = current_split_allocation(config.pneumatic.inlet, config.pneumatic.outlet)
+    return design, allocation
 
 
 @dataclass
@@ -334,10 +354,8 @@ def build_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLo
             "outlet_valve_shut", ConstantVectorSource([0.0])
         ).get_output_port()
     else:
-        model, allocation = _offset_free_design(config, plant, nominal)
-        design = design_offset_free_lqg(
-            model, config.offset_free_lqg.weights, measurement_delay_samples(config)
-        )
+        design, allocation = _offset_free_design(config, plant, nominal)
+        model = design.model
         controller = add_offset_free_lqg(
             builder, design, allocation, start_height_m, name="offset_free_lqg"
         )

@@ -12,13 +12,16 @@ model to the recording.
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
+from maskless.analysis.metrics import estimate_error_std_m
 from maskless.analysis.recording import write_recording
+from maskless.analysis.summary import estimation_start_s
 from maskless.assets.loader import ConfigError
 from maskless.diagrams.cli import add_config_argument
 from maskless.diagrams.closed_loop import (
@@ -27,6 +30,7 @@ from maskless.diagrams.closed_loop import (
     add_plant,
     add_sensing_chain,
     export_and_log,
+    inlet_current_range_a,
 )
 from maskless.diagrams.config import SimulationConfig, load_config_with_overrides
 from maskless.diagrams.simulate import (
@@ -43,7 +47,7 @@ from maskless.systems.excitation import (
     excitation_signal,
     theoretical_uniform_std,
 )
-from maskless.systems.units import a_to_ma, ma_to_a
+from maskless.systems.units import a_to_ma, m_to_mm, ma_to_a
 
 USER_ERRORS = (ConfigError, FileNotFoundError, ValueError)
 
@@ -134,8 +138,9 @@ def excitation_summary(
     run: SimulationRun,
 ) -> dict:
     """The signal's statistics (mA) and what the head and fused estimate did (mm)."""
-    head = run.signals["head_height_m"].values[0]
+    times_s, head = run.signals["head_height_m"].times_s, run.signals["head_height_m"].values[0]
     fused = run.signals["fusion.estimated_state"].values[0]
+    start_s = estimation_start_s(run.config, times_s)
     summary = {
         "plant": run.closed_loop.plant,
         "signal": designed.kind,
@@ -150,7 +155,8 @@ def excitation_summary(
         "applied_std_ma": a_to_ma(applied.std()),
         "applied_crest_factor": applied.crest_factor(),
         "head_height_mm": {"min": 1e3 * float(head.min()), "max": 1e3 * float(head.max())},
-        "fused_error_std_mm": 1e3 * float(np.std(fused - head)),
+        "fused_error_std_mm": m_to_mm(estimate_error_std_m(times_s, fused, head, start_s)),
+        "estimation_start_s": start_s,
         "wall_time_s": run.wall_time_s,
     }
     if designed.kind == "uniform":
@@ -174,7 +180,8 @@ def format_excitation_summary(summary: dict) -> str:
         f"{summary['applied_crest_factor']:.3f} after clipping "
         f"({100 * summary['clipped_fraction']:.1f} % of samples clipped)",
         f"  head height {summary['head_height_mm']['min']:.2f}-"
-        f"{summary['head_height_mm']['max']:.2f} mm; fused estimate error std "
+        f"{summary['head_height_mm']['max']:.2f} mm; fused estimate error std (from "
+        f"t = {summary['estimation_start_s']:g} s) "
         f"{summary['fused_error_std_mm']:.3f} mm",
         f"  wall time {summary['wall_time_s']:.2f} s",
         "Files:",
@@ -250,8 +257,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
 
 
+def _require(condition: bool, flag: str, value, expected: str) -> None:
+    if not condition:
+        raise ValueError(f"{flag} {value}: expected {expected}")
+
+
 def run_excitation(args: argparse.Namespace) -> dict:
-    """Designs, runs and records the experiment ``args`` describe; returns the summary."""
+    """Designs, runs and records the experiment ``args`` describe; returns the summary. Every
+    flag is checked before anything is simulated."""
+    _require(
+        math.isfinite(args.duration) and args.duration > 0, "--duration", args.duration,
+        "a positive number of seconds",
+    )  # fmt: skip
+    _require(
+        math.isfinite(args.amplitude) and args.amplitude > 0, "--amplitude", args.amplitude,
+        "a positive current in mA",
+    )  # fmt: skip
+    if args.offset is not None:
+        _require(math.isfinite(args.offset), "--offset", args.offset, "a current in mA")
+    if args.period is not None:
+        _require(
+            math.isfinite(args.period) and args.period > 0, "--period", args.period,
+            "a positive sample period in s",
+        )  # fmt: skip
     config = load_config_with_overrides(
         args.config,
         {
@@ -260,14 +288,16 @@ def run_excitation(args: argparse.Namespace) -> dict:
             "--duration": ("duration_s", args.duration),
         },
     )
-    inlet = config.pneumatic.inlet
-    valve_range_a = (0.0, inlet.saturation_current_a)
-    offset_a = (
-        0.5 * (inlet.starting_current_a + inlet.saturation_current_a)
-        if args.offset is None
-        else ma_to_a(args.offset)
+    valve_range_a = (0.0, inlet_current_range_a(config)[1])
+    offset_a = 0.5 * sum(inlet_current_range_a(config)) if args.offset is None else ma_to_a(
+        args.offset
     )
     period_s = config.offset_free_lqg.sample_period_s if args.period is None else args.period
+    samples = int(args.duration / period_s)
+    _require(
+        1 <= args.clock_periods <= samples // 2, "--clock-periods", args.clock_periods,
+        f"1 to {samples // 2} (half the {samples} samples), so the PRBS has at least two bits",
+    )  # fmt: skip
     designed, applied = design_excitation(
         args.signal,
         ma_to_a(args.amplitude),
@@ -279,6 +309,12 @@ def run_excitation(args: argparse.Namespace) -> dict:
         clock_periods=args.clock_periods,
         band_hz=args.band,
     )
+    if np.ptp(applied.values) == 0.0:
+        raise ValueError(
+            f"--offset {a_to_ma(offset_a):g} mA ± --amplitude {args.amplitude:g} mA: clipped to "
+            f"the inlet's [{a_to_ma(valve_range_a[0]):g}, {a_to_ma(valve_range_a[1]):g}] mA "
+            "nothing of the excitation is left"
+        )
     run = simulate_loop(build_excitation_loop(config, applied), config)
     summary = excitation_summary(
         designed, applied, ma_to_a(args.amplitude), offset_a, valve_range_a, run

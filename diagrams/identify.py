@@ -229,6 +229,7 @@ def write_outputs(fitted_models, parts, report, offsets, units, args) -> None:
         )
         path = args.out / f"model_{fitted.method}_order{fitted.model.order}.yaml"
         path.write_text(yaml.safe_dump(contents, sort_keys=False))
+        entry["model_file"] = str(path)
     (args.out / "report.json").write_text(json.dumps(report, indent=1))
     plotting.wait()
 

@@ -17,9 +17,13 @@ gain is noise, as it was for the authors (shared/paper-data/README.md).
 
 import argparse
 import json
+import math
+import shlex
 import sys
 from pathlib import Path
 
+from maskless.analysis.identification_report import EXPLAINS_VERDICT
+from maskless.analysis.summary import tracking_lines
 from maskless.assets.loader import ConfigError
 from maskless.diagrams import excite, identify, simulate
 from maskless.diagrams.cli import add_config_argument
@@ -61,6 +65,11 @@ def run_workflow(
         config: a YAML overriding the shipped scenario, for both simulations.
         echo: called with each stage's command line.
     """
+    for flag, value in (("--excitation-duration", excitation_s), ("--duration", closed_loop_s)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{flag} {value}: expected a positive number of seconds")
+    if order < 1:
+        raise ValueError(f"--order {order}: expected a model order of at least 1")
     common = ["--seed", str(seed)] + ([] if config is None else ["--config", str(config)])
     excite_argv = [
         "--signal", signal,
@@ -71,7 +80,8 @@ def run_workflow(
         "--out", str(out / "excitation"),
         *common,
     ]  # fmt: skip
-    echo(f"maskless excite {' '.join(excite_argv)}")
+    echo(f"maskless excite {shlex.join(excite_argv)}")
+    # The first stage checks the experiment's flags before it simulates anything.
     excitation = excite.run_excitation(_stage_args(excite, excite_argv))
     identify_argv = [
         "--input", excitation["files"]["recording"],
@@ -80,23 +90,31 @@ def run_workflow(
         "--method", "pem",
         "--out", str(out / "identification"),
     ]  # fmt: skip
-    echo(f"maskless identify {' '.join(identify_argv)}")
+    echo(f"maskless identify {shlex.join(identify_argv)}")
     report = identify.run_identification(_stage_args(identify, identify_argv))
-    model_path = out / "identification" / f"model_pem_order{order}.yaml"
+    (model,) = report["models"]
+    warning = None
+    if not model["verdict"].startswith(EXPLAINS_VERDICT):
+        warning = (
+            "the identified model does not show that the input explains the output, so the "
+            "controller designed on it is not to be trusted; excite the slow dynamics more (a "
+            "PRBS with longer bits, a larger amplitude or a longer record)"
+        )
+        echo(f"WARNING: {warning}")
     simulate_argv = [
-        "--controller", f"offset-free-lqg:{model_path}",
+        "--controller", f"offset-free-lqg:{model['model_file']}",
         "--duration", repr(closed_loop_s),
         "--out", str(out / "closed_loop"),
         *common,
     ]  # fmt: skip
-    echo(f"maskless simulate {' '.join(simulate_argv)}")
+    echo(f"maskless simulate {shlex.join(simulate_argv)}")
     closed_loop = simulate.run_simulation(_stage_args(simulate, simulate_argv))
-    (model,) = report["models"]
     return {
         "excitation": excitation,
         "identification": {
-            "model_file": str(model_path),
-            "verdict": report["verdict"],
+            "model_file": model["model_file"],
+            "verdict": model["verdict"],
+            "warning": warning,
             "dc_gain": model["dc_gain"],
             "poles": model["poles"],
             "validation": model["validation"],
@@ -107,26 +125,20 @@ def run_workflow(
 
 def format_workflow(result: dict) -> str:
     excitation, identified = result["excitation"], result["identification"]
-    tracking = result["closed_loop"]["tracking"]
-    settled = (
-        f"settled within ±{tracking['tolerance_mm']:.1f} mm after {tracking['settle_time_s']:.2f} s"
-        if tracking["settled"]
-        else f"did NOT settle within ±{tracking['tolerance_mm']:.1f} mm"
-    )
-    return "\n".join(
-        [
-            "",
-            f"1. excite: {excitation['signal']}, std {excitation['std_ma']:.2f} mA, crest factor "
-            f"{excitation['crest_factor']:.3f}, head {excitation['head_height_mm']['min']:.2f}-"
-            f"{excitation['head_height_mm']['max']:.2f} mm",
-            f"2. identify: {identified['model_file']}",
-            f"   {identified['verdict']}",
-            f"3. simulate on the pneumatic plant: {settled}; p95 "
-            f"{tracking['p95_abs_error_mm']:.3f} mm, RMS {tracking['rms_error_mm']:.3f} mm, "
-            f"overshoot {tracking['overshoot_mm']:.3f} mm",
-            f"   plot {result['closed_loop']['files']['plot']}",
-        ]
-    )
+    lines = [
+        "",
+        f"1. excite: {excitation['signal']}, std {excitation['std_ma']:.2f} mA, crest factor "
+        f"{excitation['crest_factor']:.3f}, head {excitation['head_height_mm']['min']:.2f}-"
+        f"{excitation['head_height_mm']['max']:.2f} mm",
+        f"2. identify: {identified['model_file']}",
+        f"   {identified['verdict']}",
+    ]
+    if identified["warning"]:
+        lines.append(f"   WARNING: {identified['warning']}")
+    lines.append("3. simulate on the pneumatic plant, controller designed on that model:")
+    lines += [f"   {line}" for line in tracking_lines(result["closed_loop"]["tracking"])]
+    lines.append(f"   plot {result['closed_loop']['files']['plot']}")
+    return "\n".join(lines)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -118,6 +118,7 @@ def test_human_summaries(tmp_path, capsys):
         (["stability", "--lifts", "9,x"], "--lifts"),
         (["stability", "--lifts", "30"], "--lifts"),
         (["stability", "--mass-factors", "-0.5"], "--mass-factors"),
+        (["stability", "--mass-factors", "100"], "--mass-factors"),  # no steady state at all
         (["stability", "--extra-latency-ticks", "-1"], "--extra-latency-ticks"),
         (["stability", "--extra-latency-ticks", "1.5"], "--extra-latency-ticks"),
     ],

@@ -27,12 +27,17 @@ def record_warm_up(path):
     path.write_text("warm")
 
 
+def write_after_warm_up(marker, path, text):
+    # The work sees the warm-up's result: it ran first, in the same child.
+    path.write_text(marker.read_text() + " " + text)
+
+
 def test_warm_worker_prepares_before_the_work_arrives(tmp_path):
     marker, target = tmp_path / "warm.txt", tmp_path / "out.txt"
     worker = WarmWorker("writing out.txt", partial(record_warm_up, marker))
-    worker.submit(write_text, target, text="done")
+    worker.submit(write_after_warm_up, marker, target, text="done")
     worker.wait()
-    assert marker.read_text() == "warm" and target.read_text() == "done"
+    assert target.read_text() == "warm done"
 
 
 def test_a_failing_warm_worker_is_reported_by_wait():
@@ -40,3 +45,12 @@ def test_a_failing_warm_worker_is_reported_by_wait():
     worker.submit(sys.exit, 4)
     with pytest.raises(RuntimeError, match="exiting with 4 failed.*exit code 4"):
         worker.wait()
+
+
+def test_a_worker_whose_warm_up_failed_is_reported_by_wait_not_by_submit(tmp_path):
+    worker = WarmWorker("warming up", partial(sys.exit, 5))
+    worker._child._process.join()  # the warm-up has failed before the work is sent
+    worker.submit(write_text, tmp_path / "never.txt", text="x")
+    with pytest.raises(RuntimeError, match="warming up failed.*exit code 5"):
+        worker.wait()
+    assert not (tmp_path / "never.txt").exists()

@@ -10,6 +10,8 @@ from maskless.diagrams.config import load_simulation_config
 from maskless.diagrams.excite import build_excitation_loop, design_excitation
 from maskless.diagrams.simulate import simulate_loop
 from maskless.systems.excitation import ExcitationSignal
+from maskless.systems.pneumatic_physics import LIFT
+from maskless.systems.pneumatic_plant import equilibrium_state
 
 PERIOD_S = 1.0 / 15.0
 
@@ -31,15 +33,21 @@ def test_the_recorded_command_is_the_designed_signal():
     assert np.all(reference == pytest.approx(loop.start_height_m))
 
 
-def test_open_loop_head_rises_with_more_inlet_current():
+def test_open_loop_head_settles_at_the_plants_equilibrium_for_each_current():
     config = load_simulation_config()
-    config.duration_s = 40.0
-    heights = []
-    for current_a in (0.10, 0.15):
+    config.duration_s = 45.0  # five of the slowest time constants (~9 s at full inlet)
+    p = config.pneumatic
+    # The head starts at 6 mm of lift (about 118 mA). Valve hysteresis: a spool coming down
+    # stops half a play band above its coil current, one coming up half a band below.
+    play_a = p.inlet.play_half_width_a
+    for current_a, spool_a in ((0.10, 0.10 + play_a), (0.15, 0.15 - play_a)):
         signal = ExcitationSignal([0.0, PERIOD_S], [current_a, current_a], PERIOD_S, "step")
-        run = simulate_loop(build_excitation_loop(config, signal, record=True), config)
-        heights.append(run.signals["head_height_m"].values[0][-1])
-    assert heights[1] > heights[0] + 0.005
+        run = simulate_loop(build_excitation_loop(config, signal), config)
+        final_m = run.signals["head_height_m"].values[0][-1]
+        steady_m = p.rest_head_height_m + equilibrium_state(p, spool_a, 0.0)[LIFT]
+        start_m = run.closed_loop.start_height_m
+        # Within 2 % of the way from the start to the steady height (exp(-5) < 1 %).
+        assert final_m == pytest.approx(steady_m, abs=0.02 * abs(steady_m - start_m))
 
 
 def test_design_refuses_an_unknown_signal():
@@ -86,8 +94,11 @@ def test_excitation_beyond_the_valve_range_is_clipped(tmp_path, capsys):
 def test_bad_arguments_are_refused(tmp_path, capsys):
     out = tmp_path / "ex"
     assert main(["excite", "--duration", "-1", "--out", str(out)]) == 2
-    error = capsys.readouterr().err
-    assert "--duration" in error and "duration_s" in error
+    assert "--duration -1.0: expected a positive number of seconds" in capsys.readouterr().err
+    assert main(["excite", "--offset", "1000", "--out", str(out)]) == 2
+    assert "nothing of the excitation is left" in capsys.readouterr().err
+    assert main(["excite", "--clock-periods", "0", "--out", str(out)]) == 2
+    assert "--clock-periods 0: expected 1 to" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["excite", "--band", "1-2"])
     assert "LOW:HIGH" in capsys.readouterr().err

@@ -182,3 +182,18 @@ def test_anti_windup(design):
     # Stated bound: half the step (measured ~28 %, from the loop's one-tick command delay and
     # the +-0.02 rate of descent; an integrator wound up for 30 s would overshoot far more).
     assert np.min(after) > target - 0.5 * step
+
+
+@pytest.mark.parametrize("a", [1.0, 1.0 - 1e-9])
+def test_an_integrating_model_is_refused_with_its_pole_named(a):
+    # Its steady height per command is unbounded, so weights per metre of height cannot apply
+    # (near it, Drake's Riccati solver would abort the process on a lost detectability).
+    model = LinearDesignModel(np.array([[a]]), np.array([[B_]]), np.array([[1.0]]), T, U0, Y0)
+    with pytest.raises(ValueError, match=r"pole at z = (1|0\.999999999) \(an integrator"):
+        design_offset_free_lqg(model, WEIGHTS)
+
+
+def test_a_model_whose_input_holds_no_height_is_refused():
+    model = LinearDesignModel(np.array([[A_]]), np.array([[0.0]]), np.array([[1.0]]), T, U0, Y0)
+    with pytest.raises(ValueError, match="no steady state"):
+        design_offset_free_lqg(model, WEIGHTS)

@@ -43,8 +43,37 @@ def test_the_loop_designed_on_the_identified_model_tracks_the_step(workflow):
         assert (out / stage).is_file()
 
 
-def test_workflow_command_prints_json(tmp_path, capsys):
+def test_workflow_command_prints_json_and_text(tmp_path, capsys):
+    # 5 s ends before the reference step: the text must cope with no overshoot to report.
     args = ["workflow", "--excitation-duration", "200", "--duration", "5"]
-    assert main([*args, "--out", str(tmp_path), "--json"]) == 0
+    assert main([*args, "--out", str(tmp_path / "a"), "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert {"excitation", "identification", "closed_loop"} == result.keys()
+    assert main([*args, "--out", str(tmp_path / "b")]) == 0
+    assert "overshoot n/a (no reference step)" in capsys.readouterr().out
+
+
+def test_uniform_noise_at_the_frame_rate_gets_a_warning(workflow, tmp_path, capsys):
+    # The paper's own excitation leaves the input's effect below the noise (its B ~ 1e-7):
+    # the workflow says the design is not to be trusted.
+    args = ["--signal", "uniform", "--clock-periods", "1", "--amplitude", "50"]
+    argv = ["workflow", *args, "--offset", "112.5", "--duration", "5", "--out", str(tmp_path)]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "explains essentially nothing" in text and "WARNING" in text
+    assert workflow[1]["identification"]["warning"] is None
+
+
+@pytest.mark.parametrize(
+    "flags, message",
+    [
+        (["--duration", "0"], "--duration 0.0: expected a positive"),
+        (["--excitation-duration", "-1"], "--excitation-duration -1.0: expected a positive"),
+        (["--order", "0"], "--order 0: expected a model order of at least 1"),
+    ],
+)
+def test_bad_flags_are_refused_before_any_stage_runs(tmp_path, capsys, flags, message):
+    out = tmp_path / "wf"
+    assert main(["workflow", *flags, "--out", str(out)]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()

@@ -214,7 +214,10 @@ def _offset_free_design(
     try:
         # An identified model's output is the fused estimate as logged at a tick, after that
         # tick's update; the controller reads it one tick later.
-        design = design_offset_free_lqg(model, settings.weights, measurement_delay_samples=1)
+        weights = dataclasses.replace(
+            settings.weights, process_noise_m2=settings.identified_model_process_noise_m2
+        )
+        design = design_offset_free_lqg(model, weights, measurement_delay_samples=1)
     except ValueError as error:
         raise ConfigError(f"controller = {config.controller!r}: {error}") from None
     allocation = current_split_allocation(config.pneumatic.inlet, config.pneumatic.outlet)

@@ -64,12 +64,15 @@ class OffsetFreeLqgConfig:
         outlet_full_open_below_m: the split-range allocation opens the outlet fully this far below
             the lowest lift the bladder holds with both valves shut (m).
         weights: LQR and Kalman weights.
+        identified_model_process_noise_m2: ``weights.process_noise_m2`` for a design on an
+            identified model (m²), whose innovations form already carries its noise.
     """
 
     sample_period_s: float = UNSET
     operating_lift_m: float = UNSET
     outlet_full_open_below_m: float = UNSET
     weights: OffsetFreeLqgWeights = field(default_factory=OffsetFreeLqgWeights)
+    identified_model_process_noise_m2: float = UNSET
 
 
 @dataclass
@@ -228,6 +231,12 @@ def validate_simulation_config(config: SimulationConfig) -> None:
         require(value > 0, f"offset_free_lqg.weights.{field_name}", value, "> 0")
     fraction = controller.weights.state_weight_fraction
     require(fraction >= 0, "offset_free_lqg.weights.state_weight_fraction", fraction, ">= 0")
+    require(
+        controller.identified_model_process_noise_m2 >= 0,
+        "offset_free_lqg.identified_model_process_noise_m2",
+        controller.identified_model_process_noise_m2,
+        ">= 0",
+    )
     pneumatic = config.pneumatic
     lifts = {
         "start_lift_m": config.start_lift_m,

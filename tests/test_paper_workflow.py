@@ -9,11 +9,15 @@ from maskless.diagrams.paper_workflow import run_workflow
 from maskless.systems.pneumatic_design import linearize_pneumatic_plant
 
 
-@pytest.fixture(scope="module")
-def workflow(tmp_path_factory):
+# Order 2 is the paper's; order 3's fit carries a non-minimum-phase zero, the case where a filter
+# that trusted the states less than the identified noise model says chattered the valves.
+@pytest.fixture(scope="module", params=[2, 3], ids=["order2", "order3"])
+def workflow(request, tmp_path_factory):
     out = tmp_path_factory.mktemp("workflow")
     lines = []
-    result = run_workflow(out, excitation_s=600.0, closed_loop_s=60.0, echo=lines.append)
+    result = run_workflow(
+        out, excitation_s=600.0, order=request.param, closed_loop_s=60.0, echo=lines.append
+    )
     return out, result, lines
 
 
@@ -37,7 +41,9 @@ def test_the_loop_designed_on_the_identified_model_tracks_the_step(workflow):
     assert result["closed_loop"]["controller"] == "offset-free-lqg"
     assert result["closed_loop"]["plant"] == "pneumatic"
     assert tracking["settled"] and tracking["settle_time_s"] < 10.0
-    assert tracking["p95_abs_error_mm"] < 1.0
+    assert tracking["p95_abs_error_mm"] < 0.5 and tracking["overshoot_mm"] < 1.0
+    # No chatter: the inlet stays within the currents a 5 mm lift needs, never slammed shut.
+    assert result["closed_loop"]["valve_commands"]["inlet_range_ma"][0] > 80.0
     assert [line.split()[1] for line in lines] == ["excite", "identify", "simulate"]
     for stage in ("excitation/run.mcap", "identification/report.json", "closed_loop/run.mcap"):
         assert (out / stage).is_file()

@@ -403,38 +403,81 @@ def write_recording(path: str | PathLike[str], channels: Sequence[Channel]) -> N
             field names are not exactly the schema's required fields, or the times are not
             non-decreasing integers (ns). The message names the topic and field.
     """
-    seen: set[str] = set()
-    prepared = []
-    for channel in channels:
-        if channel.topic in seen:
-            raise ValueError(f"topic {channel.topic!r} appears more than once in channels")
-        seen.add(channel.topic)
-        prepared.append(_prepare_channel(channel))
+    batch = _Batch.of(channels)
+    with RecordingWriter(path, [channel.topic for channel in channels]) as writer:
+        writer._write_batch(batch)
 
-    # Encode every payload up front (column lists, no numpy scalars).
-    payloads = [
-        _encode_payloads(channel.topic, names, lists)
-        for channel, (_, names, lists) in zip(channels, prepared, strict=True)
-    ]
 
-    # A stable sort over the channels concatenated in order keeps ties in the order of `channels`
-    # and, within a channel, in sample order.
-    all_times = np.concatenate([t for t, _, _ in prepared] or [np.empty(0, np.int64)])
-    channel_index = np.concatenate(
-        [np.full(t.shape[0], i, dtype=np.int64) for i, (t, _, _) in enumerate(prepared)]
-        or [np.empty(0, np.int64)]
-    )
-    row_index = np.concatenate(
-        [np.arange(t.shape[0], dtype=np.int64) for t, _, _ in prepared] or [np.empty(0, np.int64)]
-    )
-    order = np.argsort(all_times, kind="stable")
-    times_sorted = all_times[order].tolist()
-    channels_sorted = channel_index[order].tolist()
-    rows_sorted = row_index[order].tolist()
+@dataclass
+class _Batch:
+    """Validated, encoded channels: every message's (time, channel, row) in log-time order."""
 
-    with open(Path(path), "wb") as stream:
-        writer = Writer(
-            stream,
+    topics: list[str]
+    payloads: list[list[bytes]]
+    times: list[int]
+    channel_indices: list[int]
+    rows: list[int]
+
+    @classmethod
+    def of(cls, channels: Sequence[Channel]) -> _Batch:
+        seen: set[str] = set()
+        prepared = []
+        for channel in channels:
+            if channel.topic in seen:
+                raise ValueError(f"topic {channel.topic!r} appears more than once in channels")
+            seen.add(channel.topic)
+            prepared.append(_prepare_channel(channel))
+        # Encode every payload up front (column lists, no numpy scalars).
+        payloads = [
+            _encode_payloads(channel.topic, names, lists)
+            for channel, (_, names, lists) in zip(channels, prepared, strict=True)
+        ]
+        # A stable sort over the channels concatenated in order keeps ties in the order of
+        # `channels` and, within a channel, in sample order.
+        empty = [np.empty(0, np.int64)]
+        all_times = np.concatenate([t for t, _, _ in prepared] or empty)
+        channel_index = np.concatenate(
+            [np.full(t.shape[0], i, dtype=np.int64) for i, (t, _, _) in enumerate(prepared)]
+            or empty
+        )
+        row_index = np.concatenate(
+            [np.arange(t.shape[0], dtype=np.int64) for t, _, _ in prepared] or empty
+        )
+        order = np.argsort(all_times, kind="stable")
+        return cls(
+            [channel.topic for channel in channels],
+            payloads,
+            all_times[order].tolist(),
+            channel_index[order].tolist(),
+            row_index[order].tolist(),
+        )
+
+
+class RecordingWriter:
+    """A recording written in batches, for a run that is still going: each batch holds the next
+    samples of every topic, later than every message before it.
+
+    Use it as a context manager. Leaving the block normally writes the footer; leaving it on an
+    error closes the file without one, so ``read_recording`` reads what was written and reports
+    the recording as cut off. Messages are identical to ``write_recording``'s for the same samples
+    in one batch.
+    """
+
+    def __init__(self, path: str | PathLike[str], topics: Sequence[str]):
+        """Opens ``path`` (overwritten) and registers ``topics``, in order.
+
+        Raises:
+            ValueError: If a topic is unknown or repeated (before the file is opened).
+        """
+        if len(set(topics)) != len(topics):
+            raise ValueError(f"topics repeat: {list(topics)}")
+        schemas = [schema_for_topic(topic) for topic in topics]
+        self._topics = list(topics)
+        self._messages_written = [0] * len(topics)
+        self._last_time_ns = None
+        self._stream = open(Path(path), "wb")
+        self._writer = Writer(
+            self._stream,
             compression=CompressionType.NONE,
             # Unchunked, so every complete message survives a crash; without chunks there is no
             # message or chunk index to write.
@@ -442,35 +485,78 @@ def write_recording(path: str | PathLike[str], channels: Sequence[Channel]) -> N
             index_types=IndexType.NONE,
             enable_data_crcs=True,
         )
-        writer.start(profile=PROFILE, library=LIBRARY)
+        self._writer.start(profile=PROFILE, library=LIBRARY)
         schema_ids: dict[str, int] = {}
-        channel_ids: list[int] = []
-        for channel in channels:
-            schema_name, schema = schema_for_topic(channel.topic)
+        self._channel_ids = []
+        for topic, (schema_name, schema) in zip(topics, schemas, strict=True):
             if schema_name not in schema_ids:
-                schema_ids[schema_name] = writer.register_schema(
+                schema_ids[schema_name] = self._writer.register_schema(
                     name=schema_name,
                     encoding=SCHEMA_ENCODING,
                     data=json.dumps(schema, separators=(",", ":")).encode(),
                 )
-            channel_ids.append(
-                writer.register_channel(
-                    topic=channel.topic,
+            self._channel_ids.append(
+                self._writer.register_channel(
+                    topic=topic,
                     message_encoding=MESSAGE_ENCODING,
                     schema_id=schema_ids[schema_name],
                 )
             )
-        add_message = writer.add_message
-        for t, c, r in zip(times_sorted, channels_sorted, rows_sorted, strict=True):
+
+    def write(self, channels: Sequence[Channel]) -> None:
+        """Appends a batch: one ``Channel`` per registered topic, in the registered order.
+
+        Raises:
+            ValueError: If the topics differ from the registered ones, a channel is invalid (as
+                for ``write_recording``), or the batch starts before the last message written.
+        """
+        topics = [channel.topic for channel in channels]
+        if topics != self._topics:
+            raise ValueError(f"batch topics {topics}: expected {self._topics}")
+        self._write_batch(_Batch.of(channels))
+
+    def _write_batch(self, batch: _Batch) -> None:
+        if batch.times and self._last_time_ns is not None and batch.times[0] < self._last_time_ns:
+            raise ValueError(
+                f"batch starts at {batch.times[0]} ns, before the last message written "
+                f"({self._last_time_ns} ns)"
+            )
+        add_message = self._writer.add_message
+        channel_ids, payloads, counts = self._channel_ids, batch.payloads, self._messages_written
+        for t, c, r in zip(batch.times, batch.channel_indices, batch.rows, strict=True):
             add_message(
                 channel_id=channel_ids[c],
                 log_time=t,
                 data=payloads[c][r],
                 publish_time=t,
                 # The sequence counter wraps at 2**32 (uint32 in MCAP).
-                sequence=r & 0xFFFFFFFF,
+                sequence=(counts[c] + r) & 0xFFFFFFFF,
             )
-        writer.finish()
+        for c, channel_payloads in enumerate(payloads):
+            counts[c] += len(channel_payloads)
+        if batch.times:
+            self._last_time_ns = batch.times[-1]
+
+    def __enter__(self) -> RecordingWriter:
+        return self
+
+    def __exit__(self, error_type, error, traceback) -> None:
+        try:
+            if error_type is None:
+                self._writer.finish()
+        finally:
+            self._stream.close()
+
+
+def write_recording_batches(connection, path: str | PathLike[str]) -> None:
+    """Writes the batches of channels ``connection.recv()`` returns to ``path`` until it returns
+    None (a ``background.Worker``'s serve function). If the sender goes away first (EOFError),
+    the file is left without its footer: cut off, and readable up to the last batch."""
+    channels = connection.recv()
+    with RecordingWriter(path, [channel.topic for channel in channels]) as writer:
+        while channels is not None:
+            writer.write(channels)
+            channels = connection.recv()
 
 
 class TruncatedRecordingWarning(RuntimeWarning):

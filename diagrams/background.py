@@ -1,16 +1,14 @@
-"""Run one function in a forked child process while the caller goes on, to use a second core.
-
-Two ways to hand the child its work:
+"""Work in forked child processes while the caller goes on, to use a second core.
 
 - ``BackgroundTask`` forks once the work's inputs exist, so the child shares them without copying
   or pickling (`maskless identify` renders its plots this way).
-- ``WarmWorker`` forks early, lets the child do its slow preparation (importing matplotlib takes
-  ~0.35 s) while the caller computes, then sends the function and its (picklable) arguments. A
-  child process, not a thread: a thread's imports would hold the GIL the simulation needs.
-  `maskless simulate` renders its plot this way while it writes the recording.
+- ``Worker`` forks early and serves what the caller sends it later (picklable objects, through a
+  pipe): `maskless simulate` streams the recording to one while the loop runs, and has another
+  import matplotlib meanwhile (~0.35 s) and then plot. Child processes, not threads: a thread's
+  work would hold the GIL the simulation needs.
 
 Where fork is not the platform's safe default (macOS and Windows), the work simply runs in the
-caller, at once.
+caller: a task at once, a worker's serve function when the caller waits for it.
 """
 
 import multiprocessing
@@ -58,39 +56,59 @@ class BackgroundTask:
             self._child.wait()
 
 
-def _serve(connection, warm_up: Callable[[], None]) -> None:
-    warm_up()
-    try:
-        function, args, kwargs = connection.recv()
-    except EOFError:  # the caller gave up before sending any work
-        return
-    function(*args, **kwargs)
+class _Replay:
+    """What a serve function reads where no child runs: the objects sent, then None."""
+
+    def __init__(self, objects: list):
+        self._objects = iter([*objects, None])
+
+    def recv(self):
+        return next(self._objects)
 
 
-class WarmWorker:
-    """A forked child that runs ``warm_up()`` now and one ``submit``-ted function later."""
+class Worker:
+    """A forked child running ``serve(connection, *args)``, which reads with ``connection.recv()``
+    the objects ``send`` passes, then None once the caller is done. (An end marker, not the
+    pipe's end: a child forked later holds a copy of the pipe, so closing it ends nothing.)"""
 
-    def __init__(self, description: str, warm_up: Callable[[], None]):
+    def __init__(self, description: str, serve: Callable, *args):
+        self._serve, self._args = serve, args
         self._child = None
+        self._unsent: list = []
         if _FORK_IS_SAFE:
             receiver, self._sender = multiprocessing.get_context("fork").Pipe(duplex=False)
-            self._child = _Child(description, _serve, receiver, warm_up)
+            self._child = _Child(description, serve, receiver, *args)
             receiver.close()
 
-    def submit(self, function: Callable, *args, **kwargs) -> None:
-        """Has the child run ``function(*args, **kwargs)`` (in the caller where fork is unsafe).
-        The function and arguments must pickle."""
+    def send(self, message) -> None:
+        """Passes ``message`` (picklable) to the child. If the child has died, nothing happens
+        here: ``wait`` reports it."""
         if self._child is None:
-            function(*args, **kwargs)
+            self._unsent.append(message)
             return
         try:
-            self._sender.send((function, args, kwargs))
-        except OSError:  # the child died while warming up; ``wait`` reports how
+            self._sender.send(message)
+        except OSError:  # the child is gone; its exit code says why
             pass
-        finally:
-            self._sender.close()
 
     def wait(self) -> None:
-        """Blocks until the submitted work ends; raises RuntimeError if it failed."""
-        if self._child is not None:
-            self._child.wait()
+        """Tells the child nothing more is coming and blocks until it ends.
+
+        Raises:
+            RuntimeError: the child failed or was killed.
+        """
+        if self._child is None:
+            self._serve(_Replay(self._unsent), *self._args)
+            return
+        self.send(None)
+        self._sender.close()
+        self._child.wait()
+
+
+def serve_calls(connection, warm_up: Callable[[], None]) -> None:
+    """A ``Worker`` serve function: ``warm_up()`` at once, then each ``(function, args, kwargs)``
+    received, in order, until None."""
+    warm_up()
+    while (call := connection.recv()) is not None:
+        function, args, kwargs = call
+        function(*args, **kwargs)

@@ -28,11 +28,11 @@ from maskless.analysis.recording import (
     Channel,
     filter_estimate_topic,
     sensor_measurement_topic,
-    write_recording,
+    write_recording_batches,
 )
 from maskless.analysis.summary import format_summary, summarize
 from maskless.assets.loader import ConfigError
-from maskless.diagrams.background import WarmWorker
+from maskless.diagrams.background import Worker, serve_calls
 from maskless.diagrams.cli import add_config_argument
 from maskless.diagrams.closed_loop import ClosedLoop, build_closed_loop
 from maskless.diagrams.config import SimulationConfig, load_config_with_overrides
@@ -72,6 +72,7 @@ def run_closed_loop(
     *,
     record: bool = True,
     progress: Callable[[float, float], None] | None = None,
+    on_chunk: Callable[[dict[str, Signal]], None] | None = None,
 ) -> SimulationRun:
     """Builds and simulates the closed loop for ``config.duration_s``, seeded with
     ``config.random_seed``.
@@ -80,8 +81,10 @@ def run_closed_loop(
         config: a validated configuration.
         record: log every recorded signal (False measures the bare diagram).
         progress: called as progress(simulated_s, duration_s) between chunks of a long run.
+        on_chunk: called between chunks with the samples logged since the previous call.
     """
-    return simulate_loop(build_closed_loop(config, record=record), config, progress=progress)
+    closed_loop = build_closed_loop(config, record=record)
+    return simulate_loop(closed_loop, config, progress=progress, on_chunk=on_chunk)
 
 
 def simulate_loop(
@@ -89,25 +92,40 @@ def simulate_loop(
     config: SimulationConfig,
     *,
     progress: Callable[[float, float], None] | None = None,
+    on_chunk: Callable[[dict[str, Signal]], None] | None = None,
 ) -> SimulationRun:
     """Simulates a built loop for ``config.duration_s``, seeded with ``config.random_seed``, and
-    collects its logs."""
+    collects its logs (see ``run_closed_loop`` for the callbacks)."""
     simulator = Simulator(closed_loop.diagram)
     context = simulator.get_mutable_context()
     closed_loop.diagram.SetRandomContext(context, RandomGenerator(config.random_seed))
     start = time.perf_counter()
     simulator.Initialize()
-    chunks = _PROGRESS_CHUNKS if progress is not None else 1
+    chunks = _PROGRESS_CHUNKS if progress is not None or on_chunk is not None else 1
+    taken: dict = {}  # per log sink, the samples already handed to on_chunk
     for chunk in range(1, chunks + 1):
         simulator.AdvanceTo(config.duration_s * chunk / chunks)
         if progress is not None:
             progress(context.get_time(), config.duration_s)
+        if on_chunk is not None:
+            on_chunk(_logged_signals(closed_loop, context, taken))
     wall_time_s = time.perf_counter() - start
+    signals = _logged_signals(closed_loop, context)
+    return SimulationRun(config, closed_loop, signals, wall_time_s)
+
+
+def _logged_signals(closed_loop: ClosedLoop, context, taken: dict | None = None):
+    """Every logged signal; with ``taken`` (log sink -> samples already taken, updated here), only
+    the samples logged since."""
+    taken = {} if taken is None else taken
+    first = {sink: taken.get(sink, 0) for sink, _ in closed_loop.loggers.values()}
     signals = {}
     for name, (sink, rows) in closed_loop.loggers.items():
         log = sink.FindLog(context)
-        signals[name] = Signal(log.sample_times().copy(), log.data()[rows].copy())
-    return SimulationRun(config, closed_loop, signals, wall_time_s)
+        start = first[sink]
+        signals[name] = Signal(log.sample_times()[start:].copy(), log.data()[rows, start:].copy())
+        taken[sink] = log.num_samples()
+    return signals
 
 
 def _nanoseconds(times_s: np.ndarray) -> np.ndarray:
@@ -128,7 +146,11 @@ def _estimate_channel(topic: str, state: Signal, covariance: Signal) -> Channel:
 
 def recording_channels(run: SimulationRun) -> list[Channel]:
     """The run's logs as MCAP channels (the topics of the recording format)."""
-    s = run.signals
+    return signal_channels(run.signals, run.closed_loop.sensor_names)
+
+
+def signal_channels(s: dict[str, Signal], sensor_names: list[str]) -> list[Channel]:
+    """Logged signals (a whole run's or a chunk's) as MCAP channels."""
     channels = [
         Channel(
             REFERENCE_TOPIC,
@@ -141,7 +163,7 @@ def recording_channels(run: SimulationRun) -> list[Channel]:
             {"head_position_m": s["head_height_m"].values[0]},
         ),
     ]
-    for name in run.closed_loop.sensor_names:
+    for name in sensor_names:
         distance, valid = s[f"{name}.distance_m"], s[f"{name}.valid"]
         channels.append(
             Channel(
@@ -150,7 +172,7 @@ def recording_channels(run: SimulationRun) -> list[Channel]:
                 {"distance_m": distance.values[0], "valid": valid.values[0] > 0.5},
             )
         )
-    for name in run.closed_loop.sensor_names:
+    for name in sensor_names:
         channels.append(
             _estimate_channel(
                 filter_estimate_topic(name),
@@ -268,16 +290,24 @@ def run_simulation(args: argparse.Namespace) -> dict:
     def report_progress(simulated_s, duration_s):
         print(f"simulated {simulated_s:.0f} / {duration_s:.0f} s", file=sys.stderr, flush=True)
 
-    mcap_path, png_path = args.out / "run.mcap", args.out / "run.png"
-    # The plotter imports matplotlib on the second core while the loop runs, then renders while
-    # the recording is written.
-    plotter = WarmWorker(f"plotting {png_path}", prepare_plotting)
-    long_run = config.duration_s >= _PROGRESS_MIN_DURATION_S
-    run = run_closed_loop(config, progress=report_progress if long_run else None)
-    summary = summarize(run)
     args.out.mkdir(parents=True, exist_ok=True)
-    plotter.submit(plot_closed_loop, png_path, **plot_arguments(run))
-    write_recording(mcap_path, recording_channels(run))
+    mcap_path, png_path = args.out / "run.mcap", args.out / "run.png"
+    sensor_names = list(config.sensors())
+    # The second core works while the loop runs: one worker writes the recording as the samples
+    # come in, another imports matplotlib and then plots.
+    recorder = Worker(f"writing {mcap_path}", write_recording_batches, mcap_path)
+    plotter = Worker(f"plotting {png_path}", serve_calls, prepare_plotting)
+
+    def record(signals):
+        recorder.send(signal_channels(signals, sensor_names))
+
+    long_run = config.duration_s >= _PROGRESS_MIN_DURATION_S
+    run = run_closed_loop(
+        config, progress=report_progress if long_run else None, on_chunk=record
+    )
+    plotter.send((plot_closed_loop, (png_path,), plot_arguments(run)))
+    summary = summarize(run)
+    recorder.wait()
     plotter.wait()
     summary["files"] = {"recording": str(mcap_path), "plot": str(png_path)}
     return summary

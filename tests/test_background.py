@@ -3,7 +3,7 @@ from functools import partial
 
 import pytest
 
-from maskless.diagrams.background import BackgroundTask, WarmWorker
+from maskless.diagrams.background import BackgroundTask, Worker, serve_calls
 
 
 def write_text(path, text):
@@ -32,25 +32,45 @@ def write_after_warm_up(marker, path, text):
     path.write_text(marker.read_text() + " " + text)
 
 
-def test_warm_worker_prepares_before_the_work_arrives(tmp_path):
+def test_a_call_worker_warms_up_before_the_calls_arrive(tmp_path):
     marker, target = tmp_path / "warm.txt", tmp_path / "out.txt"
-    worker = WarmWorker("writing out.txt", partial(record_warm_up, marker))
-    worker.submit(write_after_warm_up, marker, target, text="done")
+    worker = Worker("writing out.txt", serve_calls, partial(record_warm_up, marker))
+    worker.send((write_after_warm_up, (marker, target), {"text": "done"}))
     worker.wait()
     assert target.read_text() == "warm done"
 
 
-def test_a_failing_warm_worker_is_reported_by_wait():
-    worker = WarmWorker("exiting with 4", lambda: None)
-    worker.submit(sys.exit, 4)
+def collect(connection, path):
+    received = []
+    while (message := connection.recv()) is not None:
+        received.append(message)
+    path.write_text(repr(received))
+
+
+def test_a_worker_receives_what_is_sent_in_order_then_none(tmp_path):
+    target = tmp_path / "out.txt"
+    worker = Worker("collecting", collect, target)
+    # A second worker forked meanwhile holds a copy of the first one's pipe: the end marker,
+    # not the pipe's end, must stop the first.
+    other = Worker("idle", serve_calls, lambda: None)
+    for message in (1, "two", [3.0]):
+        worker.send(message)
+    worker.wait()
+    other.wait()
+    assert target.read_text() == "[1, 'two', [3.0]]"
+
+
+def test_a_failing_worker_is_reported_by_wait():
+    worker = Worker("exiting with 4", serve_calls, lambda: None)
+    worker.send((sys.exit, (4,), {}))
     with pytest.raises(RuntimeError, match="exiting with 4 failed.*exit code 4"):
         worker.wait()
 
 
-def test_a_worker_whose_warm_up_failed_is_reported_by_wait_not_by_submit(tmp_path):
-    worker = WarmWorker("warming up", partial(sys.exit, 5))
-    worker._child._process.join()  # the warm-up has failed before the work is sent
-    worker.submit(write_text, tmp_path / "never.txt", text="x")
+def test_a_worker_whose_warm_up_failed_is_reported_by_wait_not_by_send(tmp_path):
+    worker = Worker("warming up", serve_calls, partial(sys.exit, 5))
+    worker._child._process.join()  # the warm-up has failed before anything is sent
+    worker.send((write_text, (tmp_path / "never.txt", "x"), {}))
     with pytest.raises(RuntimeError, match="warming up failed.*exit code 5"):
         worker.wait()
     assert not (tmp_path / "never.txt").exists()

@@ -15,6 +15,7 @@ from maskless.analysis.recording import (
     HEAD_POSITION_TOPIC,
     REFERENCE_TOPIC,
     Channel,
+    RecordingWriter,
     TruncatedRecordingWarning,
     filter_estimate_topic,
     read_recording,
@@ -390,3 +391,49 @@ def test_payload_bytes_are_compact_json_dumps(tmp_path, with_nan):
         for _, _, message in make_reader(stream).iter_messages():
             payload = json.loads(message.data)
             assert message.data == json.dumps(payload, separators=(",", ":")).encode()
+
+
+def _split_at(channels, cut_ns):
+    """Two batches of the same channels: samples before ``cut_ns``, then the rest."""
+    batches = ([], [])
+    for channel in channels:
+        early = channel.times_ns < cut_ns
+        for batch, keep in zip(batches, (early, ~early), strict=True):
+            columns = {name: np.asarray(values)[keep] for name, values in channel.columns.items()}
+            batch.append(Channel(channel.topic, channel.times_ns[keep], columns))
+    return batches
+
+
+def test_batches_give_the_bytes_of_one_write(tmp_path):
+    channels = _make_channels(seed=3, scale=3)
+    whole, batched = tmp_path / "whole.mcap", tmp_path / "batched.mcap"
+    write_recording(whole, channels)
+    with RecordingWriter(batched, [c.topic for c in channels]) as writer:
+        for batch in _split_at(channels, 200_000_000):
+            writer.write(batch)
+    assert batched.read_bytes() == whole.read_bytes()
+
+
+def test_a_batch_earlier_than_the_last_or_with_other_topics_is_refused(tmp_path):
+    channels = _make_channels(seed=4)
+    early, late = _split_at(channels, 200_000_000)
+    with RecordingWriter(tmp_path / "r.mcap", [c.topic for c in channels]) as writer:
+        writer.write(late)
+        with pytest.raises(ValueError, match="before the last message written"):
+            writer.write(early)
+        with pytest.raises(ValueError, match="batch topics"):
+            writer.write(late[1:])
+
+
+def test_a_writer_left_on_an_error_leaves_a_cut_off_but_readable_file(tmp_path):
+    channels = _make_channels(seed=5)
+    first, _ = _split_at(channels, 200_000_000)
+    path = tmp_path / "r.mcap"
+    with pytest.raises(RuntimeError, match="simulation failed"):
+        with RecordingWriter(path, [c.topic for c in channels]) as writer:
+            writer.write(first)
+            raise RuntimeError("simulation failed")
+    with pytest.warns(TruncatedRecordingWarning):
+        recording = read_recording(path)
+    assert recording.truncated
+    assert sum(len(m) for m in recording.messages.values()) == sum(c.times_ns.size for c in first)

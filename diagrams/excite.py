@@ -116,6 +116,12 @@ def design_excitation(
     if kind == "prbs":
         options["clock_periods"] = clock_periods
     if kind == "multisine" and band_hz is not None:
+        nyquist_hz = 0.5 / sample_period_s
+        if not 0 < band_hz[0] <= band_hz[1] < nyquist_hz:
+            raise ValueError(
+                f"--band {band_hz[0]:g}:{band_hz[1]:g}: expected 0 < LOW <= HIGH < the Nyquist "
+                f"frequency, {nyquist_hz:g} Hz"
+            )
         options["frequency_band_hz"] = band_hz
     designed = excitation_signal(
         kind,

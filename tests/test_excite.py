@@ -97,6 +97,10 @@ def test_bad_arguments_are_refused(tmp_path, capsys):
     assert "--duration -1.0: expected a positive number of seconds" in capsys.readouterr().err
     assert main(["excite", "--offset", "1000", "--out", str(out)]) == 2
     assert "nothing of the excitation is left" in capsys.readouterr().err
+    assert main(["excite", "--signal", "multisine", "--band", "5:9", "--out", str(out)]) == 2
+    assert "--band 5:9: expected 0 < LOW <= HIGH < the Nyquist frequency, 7.5 Hz" in (
+        capsys.readouterr().err
+    )
     assert main(["excite", "--clock-periods", "0", "--out", str(out)]) == 2
     assert "--clock-periods 0: expected 1 to" in capsys.readouterr().err
     with pytest.raises(SystemExit):

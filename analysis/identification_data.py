@@ -87,15 +87,18 @@ def read_mcap_signals(
         path: the recording.
         topics_and_fields: each "TOPIC:FIELD", e.g. "/controller/command:current_a".
     """
-    try:
-        recording = read_recording(path)
-    except ValueError as error:
-        raise RecordError(str(error)) from None
-    signals = []
+    wanted = []
     for topic_and_field in topics_and_fields:
         topic, separator, field = topic_and_field.rpartition(":")
         if not separator or not topic or not field:
             raise RecordError(f"{path}: {topic_and_field!r} should be TOPIC:FIELD")
+        wanted.append((topic, field))
+    try:
+        recording = read_recording(path, topics={topic for topic, _ in wanted})
+    except ValueError as error:
+        raise RecordError(str(error)) from None
+    signals = []
+    for topic, field in wanted:
         if topic not in recording.messages:
             raise RecordError(f"{path}: no topic {topic!r}; it has {sorted(recording.messages)}")
         messages = recording.messages[topic]

@@ -24,6 +24,7 @@ import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
 from maskless.analysis.stability_margins import (
+    LOWEST_FREQUENCY_FRACTION,
     DiscreteStateSpace,
     Margins,
     added_delay_samples_loop,
@@ -45,9 +46,6 @@ from maskless.systems.pneumatic_physics import LIFT, PneumaticParameters
 from maskless.systems.pneumatic_plant import equilibrium_state
 from maskless.systems.valve_allocation import SplitRangeAllocation
 
-# The loop gain's peak is searched on a log grid over the same band as the margins
-# (``discrete_margins``): from this fraction of the Nyquist frequency up to it.
-_LOWEST_FREQUENCY_FRACTION = 1e-6
 # The holding command is found to this tolerance (m of lift command).
 _COMMAND_TOLERANCE_M = 1e-12
 
@@ -117,7 +115,8 @@ def loop_gain_peak(loop: DiscreteStateSpace, n_frequencies: int = 4000) -> tuple
     if n_frequencies < 3:
         raise ValueError(f"n_frequencies = {n_frequencies}: expected at least 3")
     nyquist = loop.nyquist_rad_s
-    omega = np.geomspace(_LOWEST_FREQUENCY_FRACTION * nyquist, nyquist, n_frequencies)
+    # The margins' band (``discrete_margins``).
+    omega = np.geomspace(LOWEST_FREQUENCY_FRACTION * nyquist, nyquist, n_frequencies)
     magnitude = np.abs(loop.frequency_response(omega))
     best = int(np.argmax(magnitude))
     low, high = omega[max(best - 1, 0)], omega[min(best + 1, omega.size - 1)]

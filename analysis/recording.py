@@ -22,7 +22,7 @@ import json
 import re
 import struct
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from os import PathLike
 from pathlib import Path
@@ -582,7 +582,9 @@ class _StrictBytesIO(io.BytesIO):
 _READ_ERRORS = (McapError, ValueError, EOFError, struct.error)
 
 
-def read_recording(path: str | PathLike[str]) -> Recording:
+def read_recording(
+    path: str | PathLike[str], topics: Collection[str] | None = None
+) -> Recording:
     """Reads a recording, recovering what it can from a cut-off file.
 
     The file is read front to back with a streaming reader (no index or footer needed). At the
@@ -593,6 +595,8 @@ def read_recording(path: str | PathLike[str]) -> Recording:
 
     Args:
         path: The MCAP file.
+        topics: Decode only these topics' messages (JSON decoding is most of the reading); the
+            others are listed with no messages. All of them when None.
 
     Returns:
         The messages by topic, in file order, with ``log_time`` in simulated ns.
@@ -638,7 +642,9 @@ def read_recording(path: str | PathLike[str]) -> Recording:
                 channels[record.id] = record
                 recording.messages.setdefault(record.topic, [])
             elif isinstance(record, McapMessage):
-                _append_message(recording, channels, record, path)
+                channel = channels.get(record.channel_id)
+                if topics is None or channel is None or channel.topic in topics:
+                    _append_message(recording, channels, record, path)
                 count += 1
 
     if error is not None:

@@ -24,7 +24,7 @@ import scipy.optimize
 
 # The margin search grid starts this fraction of the Nyquist frequency above zero: crossings below
 # it (six decades under Nyquist) are outside any loop this toolkit closes.
-_LOWEST_FREQUENCY_FRACTION = 1e-6
+LOWEST_FREQUENCY_FRACTION = 1e-6
 # An open-loop pole this close to z = ±1 makes L infinite there, so that band edge is not
 # evaluated (a numerical integrator at 1 + 1e-16 would otherwise give a meaningless margin).
 _EDGE_POLE_TOLERANCE = 1e-6
@@ -392,7 +392,7 @@ def discrete_margins(loop: DiscreteStateSpace, n_frequencies: int = 4000) -> Mar
     nyquist = loop.nyquist_rad_s
     at_nyquist = _band_edge_response(loop, -1.0)
     top = nyquist if at_nyquist is not None else nyquist * (1.0 - _EDGE_POLE_TOLERANCE)
-    omega = np.geomspace(_LOWEST_FREQUENCY_FRACTION * nyquist, top, int(n_frequencies))
+    omega = np.geomspace(LOWEST_FREQUENCY_FRACTION * nyquist, top, int(n_frequencies))
     response = loop.frequency_response(omega)
     phase_values = np.angle(-response)
     if at_nyquist is not None:

@@ -223,16 +223,10 @@ def offset_free_setup(config):
     ``closed_loop.build_closed_loop`` designs it for the pneumatic plant: the nominal head's
     parameters and their Hammerstein inverse (``NominalPneumatic``), the plant linearised at the
     configured operating lift, and the measurement delay of the configured cameras."""
-    from maskless.diagrams.closed_loop import NominalPneumatic, measurement_delay_samples
-    from maskless.systems.offset_free_lqg import design_offset_free_lqg
-    from maskless.systems.pneumatic_design import pneumatic_design_model
+    from maskless.diagrams.closed_loop import NominalPneumatic, pneumatic_offset_free_design
 
-    nominal, settings = NominalPneumatic.of(config), config.offset_free_lqg
-    model = pneumatic_design_model(
-        nominal.parameters, nominal.allocation, settings.operating_lift_m, settings.sample_period_s
-    )
-    design = design_offset_free_lqg(model, settings.weights, measurement_delay_samples(config))
-    return nominal.parameters, nominal.allocation, design
+    nominal = NominalPneumatic.of(config)
+    return nominal.parameters, nominal.allocation, pneumatic_offset_free_design(config, nominal)
 
 
 def _poles(poles) -> list[list[float]]:
@@ -447,14 +441,12 @@ def _run_stability(args: argparse.Namespace) -> int:
     )
     from maskless.analysis.loop_robustness import analyze_paper_loop, robustness_cases
     from maskless.diagrams.config import load_simulation_config
-    from maskless.systems.lqg_controller import design_lqg
-    from maskless.systems.paper_parameters import paper_identified_model, paper_lqg_weights
+    from maskless.systems.lqg_controller import paper_lqg
 
     config = load_simulation_config(args.config)
     _, allocation, design = offset_free_setup(config)
     lifts, factors, ticks = _stability_inputs(args, config, allocation)
-    model = paper_identified_model(config.paper)
-    paper = analyze_paper_loop(model, design_lqg(model, paper_lqg_weights(config.paper)))
+    paper = analyze_paper_loop(*paper_lqg(config.paper))
     cases = robustness_cases(config.pneumatic, allocation, design, lifts, factors, ticks)
     report = stability_report(paper, cases, design, config.pneumatic.head_mass_kg)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -26,7 +26,7 @@ from maskless.assets.loader import ConfigError
 from maskless.diagrams.config import ReferenceConfig, SimulationConfig, model_file_of
 from maskless.systems.depth_sensor import add_depth_sensor, latency_frames
 from maskless.systems.local_kalman_filter import add_local_kalman_filter
-from maskless.systems.lqg_controller import add_lqg_controller, design_lqg
+from maskless.systems.lqg_controller import add_lqg_controller, paper_lqg
 from maskless.systems.offset_free_lqg import (
     add_offset_free_lqg,
     design_model_from_identified,
@@ -36,7 +36,6 @@ from maskless.systems.paper_parameters import (
     IdentifiedModel,
     paper_filter_variances_si,
     paper_identified_model,
-    paper_lqg_weights,
 )
 from maskless.systems.paper_plant import add_paper_plant, operating_head_height_m
 from maskless.systems.pneumatic_design import pneumatic_allocation, pneumatic_design_model
@@ -190,6 +189,20 @@ def add_plant(
     )
 
 
+def pneumatic_offset_free_design(config: SimulationConfig, nominal: "NominalPneumatic"):
+    """The offset-free LQG for the pneumatic plant: designed on the nominal head's plant
+    linearised at the configured operating lift, for the configured cameras' measurement delay
+    (the model's output is the head height itself)."""
+    settings = config.offset_free_lqg
+    model = pneumatic_design_model(
+        nominal.parameters,
+        nominal.allocation,
+        settings.operating_lift_m,
+        settings.sample_period_s,
+    )
+    return design_offset_free_lqg(model, settings.weights, measurement_delay_samples(config))
+
+
 def _offset_free_design(
     config: SimulationConfig, plant: AddedPlant, nominal: "NominalPneumatic | None"
 ):
@@ -197,15 +210,7 @@ def _offset_free_design(
     linearisation, or on the identified model ``config.controller`` (or the plant's) names."""
     settings = config.offset_free_lqg
     if config.controller == "offset-free-lqg" and config.plant == "pneumatic":
-        model = pneumatic_design_model(
-            nominal.parameters,
-            nominal.allocation,
-            settings.operating_lift_m,
-            settings.sample_period_s,
-        )
-        # The model's output is the head height itself.
-        design = design_offset_free_lqg(model, settings.weights, measurement_delay_samples(config))
-        return design, nominal.allocation
+        return pneumatic_offset_free_design(config, nominal), nominal.allocation
     if config.controller == "offset-free-lqg":
         identified, camera_height_m = plant.model, plant.camera_height_m
     else:
@@ -313,12 +318,16 @@ def measurement_delay_samples(config: SimulationConfig) -> int:
     return round(latency_s / period_s) + 1
 
 
-def build_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLoop:
+def build_closed_loop(
+    config: SimulationConfig, record: bool = True, nominal: "NominalPneumatic | None" = None
+) -> ClosedLoop:
     """Wires the whole chain for ``config``: its plant, cameras, filters, fusion and controller.
 
     Args:
         config: a validated SimulationConfig.
         record: add VectorLogSinks for every recorded signal (the core-speed benchmark omits them).
+        nominal: ``NominalPneumatic.of(config)`` when the caller has it already (a Monte Carlo
+            over head masses shares one); built here otherwise.
 
     Exported outputs: ``reference_head_height_m``, ``head_height_m``, ``inlet_valve_current_a``,
     ``outlet_valve_current_a``, ``fusion.estimated_state``, ``fusion.covariance``, and for each
@@ -329,7 +338,8 @@ def build_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLo
     builder = DiagramBuilder()
     # Components are added flat (add_*), not as nested Diagrams: nesting nearly doubles the cost of
     # a step (benchmarks/system_overhead.py), and the loop must run >= 1000x faster than real time.
-    nominal = NominalPneumatic.of(config) if config.plant == "pneumatic" else None
+    if nominal is None and config.plant == "pneumatic":
+        nominal = NominalPneumatic.of(config)
     plant = add_plant(builder, config, nominal)
     start_height_m = plant.start_height_m
     reference = builder.AddNamedSystem(
@@ -338,8 +348,7 @@ def build_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLo
     )
 
     if config.controller == "paper-lqg":
-        model = paper_identified_model(paper)
-        design = design_lqg(model, paper_lqg_weights(paper))
+        model, design = paper_lqg(paper)
         valve_currents_a = _paper_valve_currents_a(paper)
         saturation_current_a = valve_currents_a[1]
         camera_height_m = config.kinect_v2.mount_height_m
@@ -364,40 +373,92 @@ def build_closed_loop(config: SimulationConfig, record: bool = True) -> ClosedLo
         )
         inlet_command = controller.outputs["inlet_valve_current_a"]
         outlet_command = controller.outputs["outlet_valve_current_a"]
-    builder.Connect(inlet_command, plant.inlet)
-    if plant.outlet is not None:
-        builder.Connect(outlet_command, plant.outlet)
-
-    sensing = add_sensing_chain(builder, config, plant.head_height, start_height_m)
-    builder.Connect(
-        sensing.fusion.outputs["estimated_state"], controller.inputs["fused_estimated_state"]
+    controller_name = config.controller.split(":")[0]
+    return assemble_loop(
+        builder,
+        config,
+        plant,
+        LoopDrive(
+            inlet_command,
+            outlet_command,
+            reference.get_output_port(),
+            model.sample_period_s,
+            controller_name,
+            controller,
+        ),
+        record,
+        f"{config.plant.split(':')[0]}_{controller_name}_closed_loop".replace("-", "_"),
+        model=model,
+        design=design,
     )
-    builder.Connect(reference.get_output_port(), controller.inputs["reference_head_height_m"])
+
+
+@dataclass
+class LoopDrive:
+    """What drives a plant in a loop.
+
+    Attributes:
+        inlet, outlet: the valve commands (A).
+        reference: the head height asked for (m).
+        period_s: the commands' period; every signal but the camera frames is logged at it.
+        name: "offset-free-lqg", "paper-lqg" or "excitation".
+        controller: the controller's ports, which read the fused estimate and the reference;
+            None when nothing closes the loop.
+    """
+
+    inlet: OutputPort
+    outlet: OutputPort
+    reference: OutputPort
+    period_s: float
+    name: str
+    controller: object = None
+
+
+def assemble_loop(
+    builder: DiagramBuilder,
+    config: SimulationConfig,
+    plant: AddedPlant,
+    drive: LoopDrive,
+    record: bool,
+    diagram_name: str,
+    model=None,
+    design=None,
+) -> ClosedLoop:
+    """Finishes a loop around ``plant``: ``drive``'s commands into the valves, the cameras,
+    filters and fusion watching the head (and feeding the controller, if any), every output
+    exported and logged, the Diagram built and named."""
+    builder.Connect(drive.inlet, plant.inlet)
+    if plant.outlet is not None:
+        builder.Connect(drive.outlet, plant.outlet)
+    sensing = add_sensing_chain(builder, config, plant.head_height, plant.start_height_m)
+    if drive.controller is not None:
+        controller = drive.controller
+        builder.Connect(
+            sensing.fusion.outputs["estimated_state"], controller.inputs["fused_estimated_state"]
+        )
+        builder.Connect(drive.reference, controller.inputs["reference_head_height_m"])
     loggers = export_and_log(
         builder,
         config,
         sensing,
         {
-            "reference_head_height_m": reference.get_output_port(),
+            "reference_head_height_m": drive.reference,
             "head_height_m": plant.head_height,
-            "inlet_valve_current_a": inlet_command,
-            "outlet_valve_current_a": outlet_command,
+            "inlet_valve_current_a": drive.inlet,
+            "outlet_valve_current_a": drive.outlet,
         },
-        model.sample_period_s,
+        drive.period_s,
         record,
     )
-
     diagram = builder.Build()
-    plant_name = config.plant.split(":")[0]
-    controller_name = config.controller.split(":")[0]
-    diagram.set_name(f"{plant_name}_{controller_name}_closed_loop".replace("-", "_"))
+    diagram.set_name(diagram_name)
     return ClosedLoop(
         diagram=diagram,
-        plant=plant_name,
-        controller=controller_name,
+        plant=config.plant.split(":")[0],
+        controller=drive.name,
         model=model,
         design=design,
-        start_height_m=start_height_m,
+        start_height_m=plant.start_height_m,
         sensor_names=sensing.sensor_names,
         loggers=loggers,
     )

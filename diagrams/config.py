@@ -120,15 +120,7 @@ def load_simulation_config(path: str | Path | None = None) -> SimulationConfig:
         ConfigError: an unknown or mistyped field, or a value out of range; the message names the
             file (or the field) and what was expected.
     """
-    config = default_config()
-    if path is not None:
-        config = load_config(SimulationConfig, path, defaults=config)
-    try:
-        validate_simulation_config(config)
-    except ConfigError as error:
-        where = str(path) if path is not None else "shipped defaults"
-        raise ConfigError(f"{where}: {error}") from error
-    return config
+    return load_config_with_overrides(path, {})
 
 
 # Drake's RandomGenerator takes a 32-bit seed; larger ones would wrap onto other seeds silently.
@@ -147,14 +139,20 @@ def load_config_with_overrides(
     Raises:
         ConfigError: naming the file, or the flags, and the field that is out of range.
     """
-    config = load_simulation_config(path)
+    config = default_config()
+    if path is not None:
+        config = load_config(SimulationConfig, path, defaults=config)
     for field_name, value in overrides.values():
         if value is not None:
             setattr(config, field_name, value)
+    # Validated once, after the flags: a flag may mend what the file set.
     try:
         validate_simulation_config(config)
     except ConfigError as error:
-        raise ConfigError(f"command line ({'/'.join(overrides)}): {error}") from error
+        sources = [str(path)] if path is not None else []
+        if overrides:
+            sources.append(f"command line ({'/'.join(overrides)})")
+        raise ConfigError(f"{' with '.join(sources) or 'shipped defaults'}: {error}") from error
     return config
 
 

@@ -26,10 +26,10 @@ from maskless.assets.loader import ConfigError
 from maskless.diagrams.cli import add_config_argument
 from maskless.diagrams.closed_loop import (
     ClosedLoop,
+    LoopDrive,
     NominalPneumatic,
     add_plant,
-    add_sensing_chain,
-    export_and_log,
+    assemble_loop,
     inlet_current_range_a,
 )
 from maskless.diagrams.config import SimulationConfig, load_config_with_overrides
@@ -45,7 +45,9 @@ from maskless.systems.excitation import (
     clip_to_valve_range,
     clipped_fraction,
     excitation_signal,
+    sample_count,
     theoretical_uniform_std,
+    validated_band,
 )
 from maskless.systems.units import a_to_ma, m_to_mm, ma_to_a
 
@@ -64,37 +66,17 @@ def build_excitation_loop(
     nominal = NominalPneumatic.of(config) if config.plant == "pneumatic" else None
     plant = add_plant(builder, config, nominal)
     inlet = add_excitation_source(builder, signal, name="excitation")
-    builder.Connect(inlet, plant.inlet)
     outlet = builder.AddNamedSystem("outlet_valve_shut", ConstantVectorSource([0.0]))
-    if plant.outlet is not None:
-        builder.Connect(outlet.get_output_port(), plant.outlet)
     resting = builder.AddNamedSystem("reference", ConstantVectorSource([plant.start_height_m]))
-    sensing = add_sensing_chain(builder, config, plant.head_height, plant.start_height_m)
-    loggers = export_and_log(
-        builder,
-        config,
-        sensing,
-        {
-            "reference_head_height_m": resting.get_output_port(),
-            "head_height_m": plant.head_height,
-            "inlet_valve_current_a": inlet,
-            "outlet_valve_current_a": outlet.get_output_port(),
-        },
+    drive = LoopDrive(
+        inlet,
+        outlet.get_output_port(),
+        resting.get_output_port(),
         signal.sample_period_s,
-        record,
+        "excitation",
     )
-    diagram = builder.Build()
-    plant_name = config.plant.split(":")[0]
-    diagram.set_name(f"{plant_name}_excitation")
-    return ClosedLoop(
-        diagram=diagram,
-        plant=plant_name,
-        controller="excitation",
-        model=None,
-        design=None,
-        start_height_m=plant.start_height_m,
-        sensor_names=sensing.sensor_names,
-        loggers=loggers,
+    return assemble_loop(
+        builder, config, plant, drive, record, f"{config.plant.split(':')[0]}_excitation"
     )
 
 
@@ -117,11 +99,13 @@ def design_excitation(
         options["clock_periods"] = clock_periods
     if kind == "multisine" and band_hz is not None:
         nyquist_hz = 0.5 / sample_period_s
-        if not 0 < band_hz[0] <= band_hz[1] < nyquist_hz:
+        try:
+            validated_band(band_hz, nyquist_hz)
+        except ValueError:  # said again in the flag's terms
             raise ValueError(
                 f"--band {band_hz[0]:g}:{band_hz[1]:g}: expected 0 < LOW <= HIGH < the Nyquist "
                 f"frequency, {nyquist_hz:g} Hz"
-            )
+            ) from None
         options["frequency_band_hz"] = band_hz
     designed = excitation_signal(
         kind,
@@ -160,7 +144,7 @@ def excitation_summary(
         "clipped_fraction": clipped_fraction(designed, *valve_range_a),
         "applied_std_ma": a_to_ma(applied.std()),
         "applied_crest_factor": applied.crest_factor(),
-        "head_height_mm": {"min": 1e3 * float(head.min()), "max": 1e3 * float(head.max())},
+        "head_height_mm": {"min": m_to_mm(float(head.min())), "max": m_to_mm(float(head.max()))},
         "fused_error_std_mm": m_to_mm(estimate_error_std_m(times_s, fused, head, start_s)),
         "estimation_start_s": start_s,
         "wall_time_s": run.wall_time_s,
@@ -299,7 +283,7 @@ def run_excitation(args: argparse.Namespace) -> dict:
         args.offset
     )
     period_s = config.offset_free_lqg.sample_period_s if args.period is None else args.period
-    samples = int(args.duration / period_s)
+    samples = sample_count(args.duration, period_s)
     _require(
         1 <= args.clock_periods <= samples // 2, "--clock-periods", args.clock_periods,
         f"1 to {samples // 2} (half the {samples} samples), so the PRBS has at least two bits",

@@ -26,6 +26,7 @@ from maskless.analysis.identification_data import (
 from maskless.analysis.identification_plots import plot_compare, plot_residuals
 from maskless.analysis.identification_report import METHODS, Part, identify
 from maskless.analysis.model_file import model_file_contents
+from maskless.analysis.recording import COMMAND_TOPIC, FUSION_TOPIC
 from maskless.analysis.subspace import default_horizon
 from maskless.diagrams.background import BackgroundTask
 
@@ -147,8 +148,8 @@ def read_signals(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray, tupl
     cannot be used."""
     output_path = args.output or args.input
     if args.input.suffix == ".mcap" or output_path.suffix == ".mcap":
-        input_field = args.input_column or "/controller/command:current_a"
-        output_field = args.output_column or "/fusion/estimate:position_m"
+        input_field = args.input_column or f"{COMMAND_TOPIC}:current_a"
+        output_field = args.output_column or f"{FUSION_TOPIC}:position_m"
         if output_path == args.input:  # one recording holds both: read it once
             (input_times, u), (output_times, y) = read_mcap_signals(
                 args.input, input_field, output_field

@@ -73,6 +73,7 @@ def run_closed_loop(
     record: bool = True,
     progress: Callable[[float, float], None] | None = None,
     on_chunk: Callable[[dict[str, Signal]], None] | None = None,
+    nominal=None,
 ) -> SimulationRun:
     """Builds and simulates the closed loop for ``config.duration_s``, seeded with
     ``config.random_seed``.
@@ -82,8 +83,9 @@ def run_closed_loop(
         record: log every recorded signal (False measures the bare diagram).
         progress: called as progress(simulated_s, duration_s) between chunks of a long run.
         on_chunk: called between chunks with the samples logged since the previous call.
+        nominal: passed to ``build_closed_loop``.
     """
-    closed_loop = build_closed_loop(config, record=record)
+    closed_loop = build_closed_loop(config, record=record, nominal=nominal)
     return simulate_loop(closed_loop, config, progress=progress, on_chunk=on_chunk)
 
 

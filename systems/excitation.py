@@ -240,7 +240,7 @@ def multisine(
     if frequency_band_hz is None:
         selected = harmonics
     else:
-        f_lo, f_hi = _validated_band(frequency_band_hz, nyquist_hz)
+        f_lo, f_hi = validated_band(frequency_band_hz, nyquist_hz)
         grid_hz = harmonics / period_s
         tolerance_hz = 1e-9 / period_s  # band edges that fall on a grid line are included
         selected = harmonics[(grid_hz >= f_lo - tolerance_hz) & (grid_hz <= f_hi + tolerance_hz)]
@@ -338,6 +338,12 @@ def _signal(values, sample_period_s, kind):
     return ExcitationSignal(times_s, values, sample_period_s, kind)
 
 
+def sample_count(duration_s, sample_period_s) -> int:
+    """The samples N = floor(duration_s / sample_period_s) a design of that length has, with the
+    ratio's rounding error forgiven (0.3 s / 0.1 s gives 3, not 2)."""
+    return math.floor(duration_s / sample_period_s * (1.0 + _SAMPLE_COUNT_RTOL))
+
+
 def _validated_common(amplitude, duration_s, sample_period_s, seed, offset):
     """Checks the arguments every design shares and returns the sample count N."""
     _require_positive_finite("amplitude", amplitude)
@@ -346,8 +352,7 @@ def _validated_common(amplitude, duration_s, sample_period_s, seed, offset):
     _require_finite("offset", offset)
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer; got {seed!r}")
-    ratio = duration_s / sample_period_s
-    num_samples = math.floor(ratio * (1.0 + _SAMPLE_COUNT_RTOL))
+    num_samples = sample_count(duration_s, sample_period_s)
     if num_samples < 2:
         raise ValueError(
             f"duration_s must be at least 2 sample periods ({2 * sample_period_s} s); "
@@ -356,7 +361,8 @@ def _validated_common(amplitude, duration_s, sample_period_s, seed, offset):
     return num_samples
 
 
-def _validated_band(frequency_band_hz, nyquist_hz):
+def validated_band(frequency_band_hz, nyquist_hz):
+    """(f_lo, f_hi) of a multisine band, checked: 0 < f_lo <= f_hi < the Nyquist frequency."""
     try:
         f_lo, f_hi = (float(f) for f in frequency_band_hz)
     except (TypeError, ValueError):

@@ -27,7 +27,13 @@ from maskless.systems.named_symbolic_system import (
     building_expressions,
     diagram_form,
 )
-from maskless.systems.paper_parameters import IdentifiedModel, LqgWeights
+from maskless.systems.paper_parameters import (
+    IdentifiedModel,
+    LqgWeights,
+    PaperParameters,
+    paper_identified_model,
+    paper_lqg_weights,
+)
 from maskless.systems.valve_map import effective_valve_current
 
 
@@ -55,6 +61,12 @@ def design_lqg(model: IdentifiedModel, weights: LqgWeights) -> LqgDesign:
     K, S = DiscreteTimeLinearQuadraticRegulator(model.A, model.B, weights.Q, weights.R)
     L = DiscreteTimeSteadyStateKalmanFilter(model.A, model.C, weights.W, weights.V)
     return LqgDesign(K=K, S=S, L=L, state_for_output=steady_state_per_output(model))
+
+
+def paper_lqg(paper: PaperParameters) -> tuple[IdentifiedModel, LqgDesign]:
+    """The paper's model (Eq. 26) and its LQG gains from the paper's weights."""
+    model = paper_identified_model(paper)
+    return model, design_lqg(model, paper_lqg_weights(paper))
 
 
 def steady_state_per_output(model: IdentifiedModel) -> np.ndarray:

@@ -43,7 +43,7 @@ from maskless.systems.named_symbolic_system import (
     building_expressions,
     diagram_form,
 )
-from maskless.systems.paper_parameters import IdentifiedModel
+from maskless.systems.paper_parameters import IdentifiedModel, discrete_dc_gain
 from maskless.systems.valve_allocation import SplitRangeAllocation
 
 
@@ -67,8 +67,7 @@ class LinearDesignModel:
 
     def dc_gain(self) -> float:
         """Steady output per unit steady input."""
-        n = self.A.shape[0]
-        return float((self.C @ np.linalg.solve(np.eye(n) - self.A, self.B))[0, 0])
+        return discrete_dc_gain(self.A, self.B, self.C)
 
 
 @dataclass

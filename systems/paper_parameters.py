@@ -96,8 +96,14 @@ class IdentifiedModel:
 
     def dc_gain_m_per_a(self) -> float:
         """Steady-state output change per unit input change, C (I - A)⁻¹ B + D."""
-        n = self.A.shape[0]
-        return float((self.C @ np.linalg.solve(np.eye(n) - self.A, self.B) + self.D)[0, 0])
+        return discrete_dc_gain(self.A, self.B, self.C, self.D)
+
+
+def discrete_dc_gain(A, B, C, D=None) -> float:
+    """Steady output per unit steady input of x+ = A x + B u, y = C x + D u: C (I - A)⁻¹ B + D."""
+    n = A.shape[0]
+    gain = (C @ np.linalg.solve(np.eye(n) - A, B))[0, 0]
+    return float(gain if D is None else gain + D[0, 0])
 
 
 def paper_identified_model(paper: PaperParameters) -> IdentifiedModel:

@@ -25,22 +25,17 @@ from maskless.systems.pneumatic_physics import (
     LIFT_RATE,
     OUTLET_SPOOL,
     PneumaticParameters,
-    valve_opening,
 )
 from maskless.systems.pneumatic_plant import (
     PneumaticPlant,
     equilibrium_state,
-    steady_gauge_pressure_pa,
-    steady_lift_m,
 )
 from maskless.systems.valve_allocation import SplitRangeAllocation, allocation_from_steady_lift
 
-# States the inlet current reaches; the outlet spool, shut at rest, is neither driven nor seen.
-DESIGN_STATES = (GAUGE_PRESSURE, LIFT, LIFT_RATE, INLET_SPOOL)
-# The same for each valve: the other valve's spool rests inside its play band, so it is neither
-# driven nor moving (a mode at zero that no input reaches).
+# The states each valve's current reaches: the other valve's spool rests inside its play band, so
+# it is neither driven nor moving (a mode at zero that no input reaches).
 VALVE_STATES = {
-    "inlet": DESIGN_STATES,
+    "inlet": (GAUGE_PRESSURE, LIFT, LIFT_RATE, INLET_SPOOL),
     "outlet": (GAUGE_PRESSURE, LIFT, LIFT_RATE, OUTLET_SPOOL),
 }
 # How far past the edge of the play band the spool sits when linearised: small enough to leave the
@@ -53,12 +48,7 @@ def steady_lift_curve(p: PneumaticParameters, num_points: int = 400):
     # Lift grows about quadratically with opening: sample densely near the start.
     fractions = np.linspace(0.0, 1.0, num_points) ** 2
     currents = p.inlet.starting_current_a + fractions * p.inlet.current_span_a
-    lifts = np.array(
-        [
-            steady_lift_m(p, steady_gauge_pressure_pa(p, valve_opening(i, p.inlet), 0.0))
-            for i in currents
-        ]
-    )
+    lifts = np.array([equilibrium_state(p, i, 0.0)[LIFT] for i in currents])
     return currents, lifts
 
 
@@ -85,7 +75,7 @@ def linearize_pneumatic_plant(
 ):
     """Continuous (A, B, C) of the plant at rest with the spools at the given coil currents, with
     input the coil current of ``valve`` and output the head height, on the states
-    ``VALVE_STATES[valve]`` (``DESIGN_STATES`` for the inlet).
+    ``VALVE_STATES[valve]``.
 
     The driven valve's spool is linearised about to open further (its coil a play band's half
     width ahead of it); the other valve's spool rests at the centre of its band.
@@ -156,10 +146,11 @@ def allocation_point(allocation: SplitRangeAllocation, command: float) -> Alloca
     valve = "inlet" if inlet[segment + 1] != inlet[segment] else "outlet"
     moving = inlet if valve == "inlet" else outlet
     slope = (moving[segment + 1] - moving[segment]) / (knots[segment + 1] - knots[segment])
+    inlet_a, outlet_a = allocation.currents(command)
     return AllocationPoint(
         valve=valve,
-        inlet_current_a=float(np.interp(command, knots, inlet)),
-        outlet_current_a=float(np.interp(command, knots, outlet)),
+        inlet_current_a=float(inlet_a),
+        outlet_current_a=float(outlet_a),
         amps_per_command=float(slope),
     )
 

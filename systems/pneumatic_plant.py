@@ -21,8 +21,15 @@ import math
 
 import numpy as np
 import pydrake.math as dm
+from pydrake.common.value import AbstractValue
 from pydrake.symbolic import MakeVectorVariable, Variable
-from pydrake.systems.framework import BasicVector_, DiagramBuilder, LeafSystem_
+from pydrake.systems.framework import (
+    BasicVector_,
+    DiagramBuilder,
+    LeafSystem_,
+    NumericParameterIndex,
+    ValueProducer,
+)
 from pydrake.systems.scalar_conversion import TemplateSystem
 from scipy.optimize import brentq
 
@@ -209,7 +216,21 @@ def PneumaticPlant_(T):  # noqa: N802 (Drake template naming)
             if initial_state is None:
                 initial_state = equilibrium_state(parameters, 0.0, 0.0)
             self._initial_state = np.asarray(initial_state, dtype=float)
-            self.DeclareNumericParameter(BasicVector_[T](parameter_vector(parameters)))
+            parameter_index = self.DeclareNumericParameter(
+                BasicVector_[T](parameter_vector(parameters))
+            )
+            # The dataclass of constants is rebuilt only when the parameter changes, not at
+            # every evaluation of the dynamics.
+            self._constants = self.DeclareCacheEntry(
+                "constants",
+                ValueProducer(
+                    allocate=lambda: AbstractValue.Make(parameters),
+                    calc=lambda context, value: value.set_value(
+                        parameters_from_vector(context.get_numeric_parameter(0).CopyToVector())
+                    ),
+                ),
+                {self.numeric_parameter_ticket(NumericParameterIndex(parameter_index))},
+            )
             state_index = self.DeclareContinuousState(
                 BasicVector_[T](self._initial_state), 0, 0, len(STATE_NAMES)
             )
@@ -222,7 +243,7 @@ def PneumaticPlant_(T):  # noqa: N802 (Drake template naming)
 
         def parameters(self, context) -> PneumaticParameters:
             """The constants in ``context`` (of this system's scalar type)."""
-            return parameters_from_vector(context.get_numeric_parameter(0).CopyToVector())
+            return self._constants.Eval(context)
 
         def set_parameters(self, context, parameters: PneumaticParameters) -> None:
             """Writes new constants (say a drawn head mass) into ``context``."""

@@ -9,8 +9,7 @@ from maskless.diagrams.analyze import offset_free_setup
 from maskless.diagrams.cli import build_parser, main
 from maskless.diagrams.closed_loop import build_closed_loop
 from maskless.diagrams.config import load_simulation_config
-from maskless.systems.lqg_controller import design_lqg
-from maskless.systems.paper_parameters import paper_identified_model, paper_lqg_weights
+from maskless.systems.lqg_controller import paper_lqg
 
 
 def run_json(capsys, *args):
@@ -55,8 +54,8 @@ def test_stability_json_matches_the_pure_functions(tmp_path, capsys):
         assert (out / f"{name}.png").stat().st_size > 10_000
 
     config = load_simulation_config()
-    model = paper_identified_model(config.paper)
-    paper = analyze_paper_loop(model, design_lqg(model, paper_lqg_weights(config.paper)))
+    model, design = paper_lqg(config.paper)
+    paper = analyze_paper_loop(model, design)
     reported = report["paper_lqg"]
     assert reported["peak_loop_gain"] == pytest.approx(paper.peak_loop_gain)
     assert reported["regulator_pole_shift"] == pytest.approx(paper.regulator_pole_shift)

@@ -23,8 +23,7 @@ from maskless.analysis.stability_margins import (
 )
 from maskless.diagrams.analyze import offset_free_setup
 from maskless.diagrams.config import load_simulation_config
-from maskless.systems.lqg_controller import design_lqg
-from maskless.systems.paper_parameters import paper_identified_model, paper_lqg_weights
+from maskless.systems.lqg_controller import paper_lqg
 
 
 @pytest.fixture(scope="module")
@@ -34,8 +33,8 @@ def config():
 
 @pytest.fixture(scope="module")
 def paper(config):
-    model = paper_identified_model(config.paper)
-    return model, analyze_paper_loop(model, design_lqg(model, paper_lqg_weights(config.paper)))
+    model, design = paper_lqg(config.paper)
+    return model, analyze_paper_loop(model, design)
 
 
 @pytest.fixture(scope="module")

@@ -107,7 +107,7 @@ def test_linearized_slow_pole_matches_flow_time_constant(p, inlet_a):
     assert -1.0 / slow.real == pytest.approx(tau, rel=0.10)
 
 
-def run(system, initial_state, inlet_a, outlet_a, duration_s, period_s, accuracy=None):
+def run(system, inlet_a, outlet_a, duration_s, period_s, accuracy=None):
     builder = DiagramBuilder()
     builder.AddSystem(system)
     for name, value in (("inlet_valve_current_a", inlet_a), ("outlet_valve_current_a", outlet_a)):
@@ -137,9 +137,9 @@ def slew_error_m(p, head_mass_kg, start, step, step_divisor):
     key = (head_mass_kg, start, step)
     if key not in _CONTINUOUS:
         log_period = q.simulation_step_s / 4
-        _CONTINUOUS[key] = run(PneumaticPlant(q, state), state, *step, 20.0, log_period, 1e-8)
+        _CONTINUOUS[key] = run(PneumaticPlant(q, state), *step, 20.0, log_period, 1e-8)
     t_c, y_c = _CONTINUOUS[key]
-    t_d, y_d = run(make_pneumatic_plant(q, state, h), state, *step, 20.0, h)
+    t_d, y_d = run(make_pneumatic_plant(q, state, h), *step, 20.0, h)
     assert abs(y_c[-1] - y_c[0]) > 5e-3  # it did move
     return np.max(np.abs(np.interp(t_d, t_c, y_c) - y_d))
 
@@ -163,9 +163,9 @@ def test_compiled_plant_converges_at_first_order(p, head_mass_kg, start, step):
 @pytest.mark.parametrize("currents", [(0.0, 0.0), (0.11, 0.0)])
 def test_compiled_plant_exact_at_rest(p, currents):
     state = equilibrium_state(p, *currents)
-    t_d, y_d = run(make_pneumatic_plant(p, state, p.simulation_step_s), state, *currents, 5.0, 0.5)
+    t_d, y_d = run(make_pneumatic_plant(p, state, p.simulation_step_s), *currents, 5.0, 0.5)
     np.testing.assert_allclose(y_d, p.rest_head_height_m + state[LIFT], atol=1e-9)
-    t_c, y_c = run(PneumaticPlant(p, state), state, *currents, 5.0, 0.5, 1e-8)
+    t_c, y_c = run(PneumaticPlant(p, state), *currents, 5.0, 0.5, 1e-8)
     np.testing.assert_allclose(y_c, y_d, atol=1e-9)
 
 
@@ -186,3 +186,20 @@ def test_validation_names_the_field(p, field, value):
     validate_pneumatic_parameters(p)
     with pytest.raises(ConfigError, match=f"pneumatic.{field}"):
         validate_pneumatic_parameters(dataclasses.replace(p, **{field: value}))
+
+
+def test_new_parameters_in_a_used_context_take_effect(p):
+    # The plant keeps its constants in a cache entry on the numeric parameter: writing new ones
+    # after an evaluation must change the next one, as a plant built with them computes it.
+    heavy = dataclasses.replace(p, head_mass_kg=6.0)
+    state = equilibrium_state(p, 0.12, 0.0)
+    plant = PneumaticPlant(p)
+    context = plant.CreateDefaultContext()
+    context.SetContinuousState(state)
+    plant.GetInputPort("inlet_valve_current_a").FixValue(context, [0.12])
+    plant.GetInputPort("outlet_valve_current_a").FixValue(context, [0.0])
+    before = plant.EvalTimeDerivatives(context).CopyToVector()
+    plant.set_parameters(context, heavy)
+    after = plant.EvalTimeDerivatives(context).CopyToVector()
+    np.testing.assert_array_equal(after, time_derivatives(PneumaticPlant(heavy), state, 0.12, 0.0))
+    assert not np.array_equal(before, after)

@@ -437,3 +437,15 @@ def test_a_writer_left_on_an_error_leaves_a_cut_off_but_readable_file(tmp_path):
         recording = read_recording(path)
     assert recording.truncated
     assert sum(len(m) for m in recording.messages.values()) == sum(c.times_ns.size for c in first)
+
+
+def test_reading_some_topics_decodes_only_those(tmp_path):
+    channels = _make_channels(seed=6)
+    path = tmp_path / "r.mcap"
+    write_recording(path, channels)
+    whole = read_recording(path)
+    some = read_recording(path, topics={FUSION_TOPIC, COMMAND_TOPIC})
+    assert set(some.messages) == set(whole.messages)  # every topic is still listed
+    for topic, messages in some.messages.items():
+        expected = whole.messages[topic] if topic in (FUSION_TOPIC, COMMAND_TOPIC) else []
+        assert messages == expected

@@ -3,12 +3,8 @@ import pytest
 from pydrake.symbolic import Variable
 
 from maskless.systems.pneumatic_design import pneumatic_allocation
-from maskless.systems.pneumatic_physics import valve_opening
-from maskless.systems.pneumatic_plant import (
-    load_pneumatic_parameters,
-    steady_gauge_pressure_pa,
-    steady_lift_m,
-)
+from maskless.systems.pneumatic_physics import LIFT
+from maskless.systems.pneumatic_plant import equilibrium_state, load_pneumatic_parameters
 from maskless.systems.valve_allocation import SplitRangeAllocation, current_split_allocation
 
 KNOTS = np.array([-0.01, 0.0, 0.004, 0.011, 0.018])
@@ -75,8 +71,7 @@ def hammerstein_error_m(p, first_segment):
     for lift in lifts:
         inlet, outlet = allocation.currents(lift)
         assert outlet == pytest.approx(0.0, abs=1e-15)
-        gauge = steady_gauge_pressure_pa(p, valve_opening(inlet, p.inlet), 0.0)
-        errors.append(steady_lift_m(p, gauge) - lift)
+        errors.append(equilibrium_state(p, inlet, 0.0)[LIFT] - lift)
     return np.max(np.abs(errors))
 
 

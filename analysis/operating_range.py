@@ -5,16 +5,16 @@ For each coil current of one valve (the other held), ``operating_range`` gives t
 (``pneumatic_plant.equilibrium_state``: lift and bladder gauge pressure) and Drake's ``Linearize``
 of the plant there (``pneumatic_design.linearize_pneumatic_plant``): its DC gain from the coil
 current to the lift and the time constants of its modes. Pure functions on the plant's parameters;
-``analysis_plots.plot_operating_range`` draws the result.
+``stability.plots.plot_operating_range`` draws the result.
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from maskless.systems.pneumatic_design import linearize_pneumatic_plant
-from maskless.systems.pneumatic_physics import GAUGE_PRESSURE, LIFT, PneumaticParameters
-from maskless.systems.pneumatic_plant import equilibrium_state
+from maskless.systems.plant.pneumatic_design import linearize_pneumatic_plant
+from maskless.systems.plant.pneumatic_physics import GAUGE_PRESSURE, LIFT, PneumaticParameters
+from maskless.systems.plant.pneumatic_plant import equilibrium_state
 
 VALVES = ("inlet", "outlet")
 

@@ -8,12 +8,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from maskless.analysis.metrics import estimate_error_std_m, tracking_metrics
-from maskless.systems.lqg_controller import closed_loop_poles
-from maskless.systems.offset_free_lqg import closed_loop_poles as offset_free_poles
+from maskless.systems.control.offset_free_lqg import closed_loop_poles as offset_free_poles
+from maskless.systems.control.paper_lqg import closed_loop_poles
 from maskless.systems.units import a_to_ma, m_to_mm
 
 if TYPE_CHECKING:
-    from maskless.diagrams.simulate import SimulationRun
+    from maskless.diagrams.commands.simulate import SimulationRun
 
 
 def estimation_start_s(config, times_s) -> float:

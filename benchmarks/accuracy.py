@@ -28,9 +28,9 @@ from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 
 from maskless.analysis.metrics import tracking_metrics
 from maskless.diagrams.closed_loop import NominalPneumatic, add_plant
-from maskless.diagrams.config import load_simulation_config
-from maskless.diagrams.simulate import run_closed_loop
-from maskless.systems.pneumatic_design import steady_lift_curve
+from maskless.diagrams.commands.simulate import run_closed_loop
+from maskless.diagrams.scenario import load_simulation_config
+from maskless.systems.plant.pneumatic_design import steady_lift_curve
 from maskless.systems.units import m_to_mm
 
 sys.path.insert(0, str(Path(__file__).parent))

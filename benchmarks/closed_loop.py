@@ -18,7 +18,7 @@ from pydrake.systems.analysis import Simulator
 
 from maskless.diagrams.cli import main as maskless_main
 from maskless.diagrams.closed_loop import build_closed_loop
-from maskless.diagrams.config import load_simulation_config
+from maskless.diagrams.scenario import load_simulation_config
 
 DEFAULT_DURATION_S = 120.0
 

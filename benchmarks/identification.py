@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from maskless.analysis.fit_metrics import fit_percent
-from maskless.analysis.identification_data import parse_range
-from maskless.analysis.identification_report import Part, identify
-from maskless.analysis.innovations_model import InnovationsModel
-from maskless.analysis.prediction_error import estimate_pem
-from maskless.analysis.subspace import estimate_n4sid
+from maskless.analysis.identification.fit_metrics import fit_percent
+from maskless.analysis.identification.innovations_model import InnovationsModel
+from maskless.analysis.identification.prediction_error import estimate_pem
+from maskless.analysis.identification.records import parse_range
+from maskless.analysis.identification.report import Part, identify
+from maskless.analysis.identification.subspace import estimate_n4sid
 
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))

@@ -1,7 +1,7 @@
 """Why the closed loop is built the way it is: three ratios measured in one run, one JSON line.
 
 1. A local Kalman filter step (Eq. 8-9) as a Python LeafSystem vs as the SymbolicVectorSystem the
-   toolkit uses (systems/local_kalman_filter.py), per update.
+   toolkit uses (systems/sensing/local_kalman_filter.py), per update.
 2. A chain of 20 SymbolicVectorSystems added flat to one Diagram vs each wrapped in its own
    Diagram, per simulation step (diagrams/closed_loop.py adds components flat).
 3. MCAP payload encoding: the writer's %-template path vs json.dumps (a NaN in every channel
@@ -21,10 +21,10 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import ConstantVectorSource, SymbolicVectorSystem
 
-from maskless.analysis.recording import Channel, write_recording
-from maskless.diagrams.config import load_simulation_config
-from maskless.diagrams.simulate import recording_channels, run_closed_loop
-from maskless.systems.local_kalman_filter import (
+from maskless.diagrams.commands.simulate import recording_channels, run_closed_loop
+from maskless.diagrams.scenario import load_simulation_config
+from maskless.recording import Channel, write_recording
+from maskless.systems.sensing.local_kalman_filter import (
     LocalFilterConfig,
     make_local_kalman_filter,
     predict,

@@ -12,23 +12,23 @@ from pathlib import Path
 # imports (identification's would add about 0.7 s to the 0.35 s `maskless simulate` takes to start).
 _COMMANDS = {
     "simulate": (
-        "maskless.diagrams.simulate",
+        "maskless.diagrams.commands.simulate",
         "simulate the closed loop, record it and summarise it",
     ),
     "excite": (
-        "maskless.diagrams.excite",
+        "maskless.diagrams.commands.excite",
         "drive the plant open loop with an identification signal and record it",
     ),
     "identify": (
-        "maskless.diagrams.identify",
+        "maskless.diagrams.commands.identify",
         "identify models from a recorded experiment and judge them",
     ),
     "analyze": (
-        "maskless.diagrams.analyze",
+        "maskless.diagrams.commands.analyze",
         "operating range of the plant; stability margins and robustness of the controllers",
     ),
     "workflow": (
-        "maskless.diagrams.paper_workflow",
+        "maskless.diagrams.commands.workflow",
         "excite, identify, design and simulate: the paper's workflow end to end",
     ),
 }

@@ -21,29 +21,32 @@ from pydrake.systems.primitives import (
 )
 from pydrake.trajectories import PiecewisePolynomial
 
-from maskless.analysis.model_file import load_identified_model
-from maskless.assets.loader import ConfigError
-from maskless.diagrams.config import ReferenceConfig, SimulationConfig, model_file_of
-from maskless.systems.depth_sensor import add_depth_sensor, latency_frames
-from maskless.systems.local_kalman_filter import add_local_kalman_filter
-from maskless.systems.lqg_controller import add_lqg_controller, paper_lqg
-from maskless.systems.offset_free_lqg import (
+from maskless.analysis.identification.model_file import load_identified_model
+from maskless.diagrams.scenario import ReferenceConfig, SimulationConfig, model_file_of
+from maskless.systems.config_loading import ConfigError
+from maskless.systems.control.offset_free_lqg import (
     add_offset_free_lqg,
     design_model_from_identified,
     design_offset_free_lqg,
 )
+from maskless.systems.control.paper_lqg import add_paper_lqg, paper_lqg
+from maskless.systems.control.valve_allocation import SplitRangeAllocation, current_split_allocation
 from maskless.systems.paper_parameters import (
     IdentifiedModel,
     paper_filter_variances_si,
     paper_identified_model,
 )
-from maskless.systems.paper_plant import add_paper_plant, operating_head_height_m
-from maskless.systems.pneumatic_design import pneumatic_allocation, pneumatic_design_model
-from maskless.systems.pneumatic_physics import LIFT, PneumaticParameters
-from maskless.systems.pneumatic_plant import add_pneumatic_plant, equilibrium_state
-from maskless.systems.track_fusion import add_track_fusion
+from maskless.systems.plant.linear_model_plant import (
+    add_linear_model_plant,
+    operating_head_height_m,
+)
+from maskless.systems.plant.pneumatic_design import pneumatic_allocation, pneumatic_design_model
+from maskless.systems.plant.pneumatic_physics import LIFT, PneumaticParameters
+from maskless.systems.plant.pneumatic_plant import add_pneumatic_plant, equilibrium_state
+from maskless.systems.sensing.depth_sensor import add_depth_sensor, latency_frames
+from maskless.systems.sensing.local_kalman_filter import add_local_kalman_filter
+from maskless.systems.sensing.track_fusion import add_track_fusion
 from maskless.systems.units import ma_to_a
-from maskless.systems.valve_allocation import SplitRangeAllocation, current_split_allocation
 
 # Far beyond any run, so the last reference value holds for the rest of the simulation.
 _REFERENCE_HOLD_S = 1.0e9
@@ -172,7 +175,7 @@ def add_plant(
         model, camera_height_m = paper_identified_model(paper), config.kinect_v2.mount_height_m
     else:
         model, camera_height_m = _identified_model(config.plant), None
-    plant = add_paper_plant(
+    plant = add_linear_model_plant(
         builder,
         model,
         camera_height_m,
@@ -352,7 +355,7 @@ def build_closed_loop(
         valve_currents_a = _paper_valve_currents_a(paper)
         saturation_current_a = valve_currents_a[1]
         camera_height_m = config.kinect_v2.mount_height_m
-        controller = add_lqg_controller(
+        controller = add_paper_lqg(
             builder, model, design, camera_height_m, valve_currents_a, "paper_lqg"
         )
         limits = builder.AddNamedSystem(

@@ -2,8 +2,8 @@
 
 import pytest
 
-from maskless.diagrams.config import load_simulation_config
-from maskless.diagrams.simulate import run_closed_loop
+from maskless.diagrams.commands.simulate import run_closed_loop
+from maskless.diagrams.scenario import load_simulation_config
 
 SHORT_RUN_S = 20.0
 

@@ -3,13 +3,13 @@ import json
 import numpy as np
 import pytest
 
-from maskless.analysis.loop_robustness import analyze_paper_loop, robustness_cases
 from maskless.analysis.operating_range import default_operating_ranges
-from maskless.diagrams.analyze import offset_free_setup
+from maskless.analysis.stability.loop_robustness import analyze_paper_loop, robustness_cases
 from maskless.diagrams.cli import build_parser, main
 from maskless.diagrams.closed_loop import build_closed_loop
-from maskless.diagrams.config import load_simulation_config
-from maskless.systems.lqg_controller import paper_lqg
+from maskless.diagrams.commands.analyze import offset_free_setup
+from maskless.diagrams.scenario import load_simulation_config
+from maskless.systems.control.paper_lqg import paper_lqg
 
 
 def run_json(capsys, *args):

@@ -2,10 +2,10 @@ import json
 
 import pytest
 
-from maskless.analysis.recording import read_recording, write_recording
 from maskless.diagrams.cli import main
-from maskless.diagrams.config import load_simulation_config
-from maskless.diagrams.simulate import recording_channels, run_closed_loop
+from maskless.diagrams.commands.simulate import recording_channels, run_closed_loop
+from maskless.diagrams.scenario import load_simulation_config
+from maskless.recording import read_recording, write_recording
 
 
 def test_simulate_writes_recording_plot_and_json_summary(tmp_path, capsys):

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from maskless.analysis.recording import read_recording, write_recording
 from maskless.diagrams.closed_loop import build_closed_loop
-from maskless.diagrams.simulate import recording_channels, run_closed_loop
+from maskless.diagrams.commands.simulate import recording_channels, run_closed_loop
+from maskless.recording import read_recording, write_recording
 
 TOPICS = {
     "/reference",

@@ -9,8 +9,8 @@ from pydrake.systems.primitives import TrajectorySource, VectorLogSink
 from pydrake.trajectories import PiecewisePolynomial
 from system_harness import port_layout, simulate_with_constant_inputs
 
-from maskless.assets.loader import ConfigError
-from maskless.systems.depth_sensor import (
+from maskless.systems.config_loading import ConfigError
+from maskless.systems.sensing.depth_sensor import (
     KinectV1Config,
     KinectV2Config,
     latency_frames,

@@ -5,7 +5,7 @@ import pytest
 from pydrake.systems.framework import DiagramBuilder
 from scipy import integrate, stats
 
-from maskless.systems.excitation import (
+from maskless.systems.control.excitation import (
     ExcitationSignal,
     add_excitation_source,
     clip_to_valve_range,

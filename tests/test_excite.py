@@ -4,14 +4,14 @@ import math
 import numpy as np
 import pytest
 
-from maskless.analysis.recording import read_recording
 from maskless.diagrams.cli import main
-from maskless.diagrams.config import load_simulation_config
-from maskless.diagrams.excite import build_excitation_loop, design_excitation
-from maskless.diagrams.simulate import simulate_loop
-from maskless.systems.excitation import ExcitationSignal
-from maskless.systems.pneumatic_physics import LIFT
-from maskless.systems.pneumatic_plant import equilibrium_state
+from maskless.diagrams.commands.excite import build_excitation_loop, design_excitation
+from maskless.diagrams.commands.simulate import simulate_loop
+from maskless.diagrams.scenario import load_simulation_config
+from maskless.recording import read_recording
+from maskless.systems.control.excitation import ExcitationSignal
+from maskless.systems.plant.pneumatic_physics import LIFT
+from maskless.systems.plant.pneumatic_plant import equilibrium_state
 
 PERIOD_S = 1.0 / 15.0
 

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from maskless.analysis.fit_metrics import evaluate_fit, fit_percent
+from maskless.analysis.identification.fit_metrics import evaluate_fit, fit_percent
 
 
 def test_fit_percent_of_a_hand_example():

@@ -5,7 +5,7 @@ import pytest
 import yaml
 from identification_records import PAPER_DATA, paper_record, simulate_record
 
-from maskless.analysis.model_file import load_identified_model
+from maskless.analysis.identification.model_file import load_identified_model
 from maskless.diagrams.cli import main
 
 

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from maskless.analysis.innovations_model import InnovationsModel
+from maskless.analysis.identification.innovations_model import InnovationsModel
 
 MODEL = InnovationsModel(
     a=np.array([-1.5, 0.56]),

@@ -3,8 +3,8 @@ import pytest
 import scipy.linalg
 from system_harness import port_layout
 
-from maskless.assets.loader import ConfigError
-from maskless.systems.local_kalman_filter import (
+from maskless.systems.config_loading import ConfigError
+from maskless.systems.sensing.local_kalman_filter import (
     LocalFilterConfig,
     make_local_kalman_filter,
     steady_state_covariances,

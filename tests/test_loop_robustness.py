@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from maskless.analysis.loop_robustness import (
+from maskless.analysis.stability.loop_robustness import (
     analyze_loop,
     analyze_paper_loop,
     command_holding_lift_m,
@@ -16,14 +16,14 @@ from maskless.analysis.loop_robustness import (
     robustness_cases,
     steady_lift_at_command_m,
 )
-from maskless.analysis.stability_margins import (
+from maskless.analysis.stability.margins import (
     DiscreteStateSpace,
     added_delay_samples_loop,
     feedback_loop_poles,
 )
-from maskless.diagrams.analyze import offset_free_setup
-from maskless.diagrams.config import load_simulation_config
-from maskless.systems.lqg_controller import paper_lqg
+from maskless.diagrams.commands.analyze import offset_free_setup
+from maskless.diagrams.scenario import load_simulation_config
+from maskless.systems.control.paper_lqg import paper_lqg
 
 
 @pytest.fixture(scope="module")

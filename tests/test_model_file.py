@@ -3,8 +3,8 @@ import pytest
 import yaml
 from identification_records import simulate_record
 
-from maskless.analysis.identification_report import Part, fit
-from maskless.analysis.model_file import load_identified_model, model_file_contents
+from maskless.analysis.identification.model_file import load_identified_model, model_file_contents
+from maskless.analysis.identification.report import Part, fit
 
 
 def test_a_mm_per_ma_model_loads_into_si(tmp_path):

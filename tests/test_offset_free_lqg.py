@@ -11,7 +11,7 @@ from pydrake.systems.primitives import (
     VectorLogSink,
 )
 
-from maskless.systems.offset_free_lqg import (
+from maskless.systems.control.offset_free_lqg import (
     LinearDesignModel,
     OffsetFreeLqgWeights,
     closed_loop_poles,
@@ -20,7 +20,7 @@ from maskless.systems.offset_free_lqg import (
     make_offset_free_lqg,
     steady_targets,
 )
-from maskless.systems.valve_allocation import SplitRangeAllocation
+from maskless.systems.control.valve_allocation import SplitRangeAllocation
 
 A_, B_, T = 0.9, 0.5, 0.1
 U0, Y0 = 0.1, 0.2

@@ -7,14 +7,14 @@ from maskless.analysis.operating_range import (
     operating_range,
     valve_currents_a,
 )
-from maskless.systems.pneumatic_design import linearize_pneumatic_plant
-from maskless.systems.pneumatic_physics import (
+from maskless.systems.plant.pneumatic_design import linearize_pneumatic_plant
+from maskless.systems.plant.pneumatic_physics import (
     GAUGE_PRESSURE,
     LIFT,
     LIFT_RATE,
     state_derivatives,
 )
-from maskless.systems.pneumatic_plant import equilibrium_state, load_pneumatic_parameters
+from maskless.systems.plant.pneumatic_plant import equilibrium_state, load_pneumatic_parameters
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from maskless.systems.pneumatic_physics import (
+from maskless.systems.plant.pneumatic_physics import (
     head_force_n,
     mass_flow_kg_s,
     spool_rate,
@@ -11,7 +11,7 @@ from maskless.systems.pneumatic_physics import (
     two_way_mass_flow_kg_s,
     valve_opening,
 )
-from maskless.systems.pneumatic_plant import load_pneumatic_parameters
+from maskless.systems.plant.pneumatic_plant import load_pneumatic_parameters
 
 B, LAMINAR = 0.3, 0.999
 

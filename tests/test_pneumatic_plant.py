@@ -7,15 +7,15 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 from system_harness import port_layout
 
-from maskless.assets.loader import ConfigError
-from maskless.systems.pneumatic_design import linearize_pneumatic_plant
-from maskless.systems.pneumatic_physics import (
+from maskless.systems.config_loading import ConfigError
+from maskless.systems.plant.pneumatic_design import linearize_pneumatic_plant
+from maskless.systems.plant.pneumatic_physics import (
     GAUGE_PRESSURE,
     LIFT,
     net_mass_flow_kg_s,
     valve_opening,
 )
-from maskless.systems.pneumatic_plant import (
+from maskless.systems.plant.pneumatic_plant import (
     PneumaticPlant,
     equilibrium_state,
     load_pneumatic_parameters,

@@ -3,9 +3,9 @@ import pytest
 import scipy.signal
 from identification_records import TRUE_SYSTEMS, paper_record, simulate_record
 
-from maskless.analysis.fit_metrics import evaluate_fit, fit_percent
-from maskless.analysis.identification_report import Part, fit
-from maskless.analysis.prediction_error import estimate_pem, parameter_count
+from maskless.analysis.identification.fit_metrics import evaluate_fit, fit_percent
+from maskless.analysis.identification.prediction_error import estimate_pem, parameter_count
+from maskless.analysis.identification.report import Part, fit
 
 
 def largest_pole_error(estimated, true_poles):

@@ -1,4 +1,4 @@
-"""Tests for maskless.analysis.recording (MCAP write/read of simulation recordings)."""
+"""Tests for maskless.recording (MCAP write/read of simulation recordings)."""
 
 import json
 import struct
@@ -9,7 +9,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
-from maskless.analysis.recording import (
+from maskless.recording import (
     COMMAND_TOPIC,
     FUSION_TOPIC,
     HEAD_POSITION_TOPIC,

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from maskless.analysis.residual_analysis import residual_correlations
+from maskless.analysis.identification.residual_analysis import residual_correlations
 
 
 def test_white_residuals_independent_of_the_input_stay_in_the_band():

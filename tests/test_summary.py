@@ -1,7 +1,7 @@
 import pytest
 
 from maskless.analysis.summary import format_summary, summarize
-from maskless.diagrams.simulate import run_closed_loop
+from maskless.diagrams.commands.simulate import run_closed_loop
 
 
 def test_the_paper_plant_does_not_follow_the_reference(paper_short_run):

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from system_harness import port_layout
 
-from maskless.systems.track_fusion import fuse_tracks, make_track_fusion
+from maskless.systems.sensing.track_fusion import fuse_tracks, make_track_fusion
 
 
 def random_tracks(count, seed):

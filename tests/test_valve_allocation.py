@@ -2,10 +2,10 @@ import numpy as np
 import pytest
 from pydrake.symbolic import Variable
 
-from maskless.systems.pneumatic_design import pneumatic_allocation
-from maskless.systems.pneumatic_physics import LIFT
-from maskless.systems.pneumatic_plant import equilibrium_state, load_pneumatic_parameters
-from maskless.systems.valve_allocation import SplitRangeAllocation, current_split_allocation
+from maskless.systems.control.valve_allocation import SplitRangeAllocation, current_split_allocation
+from maskless.systems.plant.pneumatic_design import pneumatic_allocation
+from maskless.systems.plant.pneumatic_physics import LIFT
+from maskless.systems.plant.pneumatic_plant import equilibrium_state, load_pneumatic_parameters
 
 KNOTS = np.array([-0.01, 0.0, 0.004, 0.011, 0.018])
 INLET = np.array([0.0, 0.0, 0.07, 0.12, 0.165])

@@ -1,7 +1,7 @@
 import pytest
 from pydrake.symbolic import Variable
 
-from maskless.systems.valve_map import effective_valve_current
+from maskless.systems.plant.valve_map import effective_valve_current
 
 START, SATURATION = 0.060, 0.165
 

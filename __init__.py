@@ -1,0 +1,1 @@
+"""maskless: simulate, identify and control a soft-robot head positioner."""

@@ -1,0 +1,72 @@
+"""Plots of an identification: measured against predicted output, and residual correlations."""
+
+from pathlib import Path
+
+import numpy as np
+
+from maskless.analysis.identification.fit_metrics import fit_percent
+from maskless.analysis.identification.report import FittedModel, Part, initial_state_for_part
+from maskless.analysis.identification.residual_analysis import residual_correlations
+
+
+def _figure(width, height):
+    # Imported here: matplotlib is slow to import and only these functions need it. A bare Figure
+    # needs no GUI backend and no pyplot.
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=(width, height), layout="constrained")
+
+
+def plot_compare(
+    path: str | Path, fitted: FittedModel, parts: list[Part], sample_period_s: float, unit: str
+) -> Path:
+    """Measured output against the one-step prediction and the simulation, on each part, with the
+    same initial states as the report's figures."""
+    model = fitted.model
+    figure = _figure(11, 3.2 * len(parts))
+    axes = figure.subplots(len(parts), 1, squeeze=False)[:, 0]
+    estimation = parts[0]
+    for axis, part in zip(axes, parts, strict=True):
+        one_step = model.predict(
+            part.u, part.y, initial_state_for_part(fitted, part, estimation, "one_step")
+        )
+        simulated = model.simulate(
+            part.u, initial_state_for_part(fitted, part, estimation, "simulation")
+        )
+        time_s = np.arange(part.y.size) * sample_period_s
+        axis.plot(time_s, one_step, lw=1.2, color="tab:blue", label="1-step prediction")
+        axis.plot(time_s, simulated, lw=1.2, color="tab:orange", label="simulation")
+        axis.plot(time_s, part.y, lw=0.6, color="black", label="measured")  # drawn on top
+        stability = "" if model.is_stable() else ", UNSTABLE"
+        axis.set_title(
+            f"{fitted.method} order {model.order}{stability}, {part.name} part: fit 1-step "
+            f"{fit_percent(part.y, one_step):.3f} %, sim {fit_percent(part.y, simulated):.1f} %"
+        )
+        axis.set_ylabel(f"output - offset ({unit})")
+        axis.legend(loc="upper right", fontsize=8)
+    axes[-1].set_xlabel("time from the part's start (s)")
+    figure.savefig(path, dpi=100)
+    return Path(path)
+
+
+def plot_residuals(path: str | Path, fitted: FittedModel, parts: list[Part]) -> Path:
+    """For each part, the one-step residuals' autocorrelation and their cross-correlation with
+    the input, each with its 99 % band."""
+    model = fitted.model
+    figure = _figure(12, 3.0 * len(parts))
+    grid = figure.subplots(len(parts), 2, squeeze=False)
+    for (auto, cross), part in zip(grid, parts, strict=True):
+        x0 = initial_state_for_part(fitted, part, parts[0], "one_step")
+        c = residual_correlations(part.y - model.predict(part.u, part.y, x0), part.u)
+        auto.stem(c.lags, c.autocorrelation, basefmt=" ")
+        auto.axhspan(-c.band, c.band, color="tab:blue", alpha=0.15, label="99 % band")
+        auto.set_title(f"{part.name}: autocorrelation of residuals")
+        auto.set_xlabel("lag (samples)")
+        auto.legend(loc="upper right", fontsize=8)
+        cross.stem(c.cross_lags, c.cross_correlation, basefmt=" ")
+        cross.axhspan(-c.cross_band, c.cross_band, color="tab:blue", alpha=0.15)
+        cross.set_title(f"{part.name}: cross-correlation of input and residuals")
+        cross.set_xlabel("lag (samples; > 0: input leads)")
+    figure.suptitle(f"{fitted.method} order {model.order}: residual analysis")
+    figure.savefig(path, dpi=100)
+    return Path(path)

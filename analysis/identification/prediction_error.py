@@ -1,0 +1,167 @@
+"""Prediction-error identification (Eq. 11) of innovations-form models, and ARX by least squares.
+
+``estimate_pem`` minimises the sum of squared one-step prediction errors over the observer-form
+parameters (a, b, k) and, when asked, the initial state x(0): MATLAB's ``ssest``/``armax`` with
+prediction focus. It starts from the ARX least-squares fit, runs scipy's Levenberg-Marquardt
+(``least_squares(method="lm")``) and keeps the predictor stable: a step that makes C(q) unstable
+gets a large finite cost instead of overflowing, so the search turns back.
+"""
+
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+import scipy.optimize
+import scipy.signal
+
+from maskless.analysis.identification.innovations_model import InnovationsModel
+
+# Residual given to the optimiser when a trial predictor is unstable or overflows, relative to the
+# output's spread: far worse than any sensible model, yet finite.
+_UNSTABLE_RESIDUAL_SCALE = 1e3
+
+
+def estimate_arx(u: np.ndarray, y: np.ndarray, order: int, sample_period_s: float):
+    """ARX(n, n, 1) by linear least squares: y(k) + a1 y(k-1) + ... = b1 u(k-1) + ... + e(k).
+
+    Returns an InnovationsModel with C(q) = 1 (k = -a) and zero initial state.
+    """
+    _check_record(u, y, order)
+    n = order
+    rows = y.size - n
+    regressors = np.column_stack(
+        [-y[n - i : n - i + rows] for i in range(1, n + 1)]
+        + [u[n - i : n - i + rows] for i in range(1, n + 1)]
+    )
+    theta, *_ = np.linalg.lstsq(regressors, y[n:], rcond=None)
+    a, b = theta[:n], theta[n:]
+    return InnovationsModel(
+        a=a, b=b, k=-a, sample_period_s=sample_period_s, initial_state=np.zeros(n)
+    )
+
+
+def estimate_pem(
+    u: np.ndarray,
+    y: np.ndarray,
+    order: int,
+    sample_period_s: float,
+    *,
+    estimate_initial_state: bool = True,
+    with_input: bool = True,
+    initial_model: InnovationsModel | None = None,
+    progress: Callable[[int, float], None] | None = None,
+) -> InnovationsModel:
+    """The innovations-form model of ``order`` that minimises the one-step prediction error.
+
+    Args:
+        u, y: the record (input and output, detrended), 1-D, same length.
+        order: n, the state dimension (= the ARMAX orders na = nb = nc, nk = 1).
+        sample_period_s: Ts.
+        estimate_initial_state: estimate x(0) too (MATLAB's InitialState 'estimate'); otherwise
+            x(0) = 0.
+        with_input: False fits the same structure with b = 0 (ARMA), the baseline that shows
+            what the input adds.
+        initial_model: where the search starts; by default the ARX fit with a noise model
+            half-way to output error. The ARMA baseline starts from the full model with b = 0,
+            so it answers "what does the input add to this model" rather than finding another
+            local minimum.
+        progress: called as progress(evaluations, cost) every few dozen cost evaluations.
+
+    Returns:
+        The model; its ``initial_state`` is the estimated x(0) of this record.
+    """
+    _check_record(u, y, order)
+    n = order
+    if initial_model is None:
+        arx = estimate_arx(u, y, n, sample_period_s)
+        # The noise model starts half-way between ARX (C = 1) and output error (C = A), both valid
+        # predictors, so neither extreme's local minimum is favoured.
+        x0_start = np.zeros(n)
+        x0_start[0] = y[0]
+        initial_model = InnovationsModel(
+            a=arx.a,
+            b=arx.b,
+            k=-0.5 * arx.a,
+            sample_period_s=sample_period_s,
+            initial_state=x0_start,
+        )
+    free = ["a", "b", "k"] if with_input else ["a", "k"]
+    start = initial_model if with_input else replace(initial_model, b=np.zeros(n))
+    if estimate_initial_state:
+        free.append("initial_state")
+    else:
+        start = replace(start, initial_state=np.zeros(n))
+    return _minimise_prediction_error(u, y, start, free, progress)
+
+
+def estimate_noise_model(
+    model: InnovationsModel,
+    u: np.ndarray,
+    y: np.ndarray,
+    estimate_initial_state: bool = True,
+    progress: Callable[[int, float], None] | None = None,
+) -> InnovationsModel:
+    """``model`` with its innovations gain K (and x(0) when asked) fitted by prediction error and
+    its dynamics A, B held: how a subspace fit gets its noise model."""
+    _check_record(u, y, model.order)
+    free = ["k", "initial_state"] if estimate_initial_state else ["k"]
+    start = replace(
+        model,
+        k=-0.5 * model.a,
+        initial_state=model.initial_state if estimate_initial_state else np.zeros(model.order),
+    )
+    return _minimise_prediction_error(u, y, start, free, progress)
+
+
+def _minimise_prediction_error(u, y, start: InnovationsModel, free: list[str], progress):
+    """Levenberg-Marquardt on the one-step errors over the named fields of ``start``."""
+    sizes = [getattr(start, name).size for name in free]
+    theta0 = np.concatenate([getattr(start, name) for name in free])
+    scale = float(np.std(y)) or 1.0
+    evaluations = [0]
+
+    def unpack(theta):
+        values, offset = {}, 0
+        for name, size in zip(free, sizes, strict=True):
+            values[name] = theta[offset : offset + size]
+            offset += size
+        return replace(start, **values)
+
+    def residuals(theta):
+        model = unpack(theta)
+        evaluations[0] += 1
+        if np.any(np.abs(model.predictor_poles()) >= 1.0):
+            return np.full(y.size, _UNSTABLE_RESIDUAL_SCALE * scale)
+        with np.errstate(over="ignore", invalid="ignore"):
+            error = y - model.predict(u, y)
+        if not np.all(np.isfinite(error)):
+            return np.full(y.size, _UNSTABLE_RESIDUAL_SCALE * scale)
+        if progress is not None and evaluations[0] % 50 == 0:
+            progress(evaluations[0], float(error @ error))
+        return error
+
+    solution = scipy.optimize.least_squares(residuals, theta0, method="lm", x_scale="jac")
+    return unpack(solution.x)
+
+
+def estimate_ar(y: np.ndarray, order: int, sample_period_s: float) -> InnovationsModel:
+    """AR(n) by least squares, y(k) + a1 y(k-1) + ... = e(k): ARX without its input, the baseline
+    an ARX model must beat."""
+    return replace(estimate_arx(np.zeros_like(y), y, order, sample_period_s), b=np.zeros(order))
+
+
+def parameter_count(
+    order: int, *, with_input: bool, with_noise_model: bool, estimated_initial_state: bool
+) -> int:
+    """d: the free parameters of a fit, n each for a, b (with input), k (with a noise model; ARX
+    has none) and x(0) (when estimated)."""
+    return order * (1 + with_input + with_noise_model + estimated_initial_state)
+
+
+def _check_record(u, y, order):
+    if not isinstance(order, int | np.integer) or order < 1:
+        raise ValueError(f"order = {order!r}: expected a positive integer")
+    if u.shape != y.shape or u.ndim != 1:
+        raise ValueError(f"u and y must be 1-D and of one length, got {u.shape} and {y.shape}")
+    if y.size < 10 * order:
+        raise ValueError(f"{y.size} samples are too few for an order-{order} model")

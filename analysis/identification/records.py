@@ -1,0 +1,178 @@
+"""Reading an identification record (CSV or a maskless MCAP), choosing its parts, detrending it.
+
+Every error names the file and, for CSV, the line: a record with text, NaN, no values, or input and
+output of different lengths is refused before any fitting starts.
+"""
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import scipy.signal
+
+from maskless.recording import read_recording
+
+
+class RecordError(ValueError):
+    """An identification record cannot be used; the message names the file (and line)."""
+
+
+def read_csv_signal(path: str | Path, column: str | None = None) -> np.ndarray:
+    """One signal from a CSV file.
+
+    Args:
+        path: the file: one value per line, or a table whose ``column`` is chosen.
+        column: a header name, or a 0-based index as text; None for one value per line.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"record not found: {path}")
+    try:
+        with open(path, newline="") as stream:
+            rows = list(csv.reader(stream))
+    except UnicodeDecodeError as error:
+        raise RecordError(
+            f"{path}: not a text file ({error.reason} at byte {error.start})"
+        ) from None
+    first_data_line = 1
+    index = 0
+    if column is not None:
+        if not rows:
+            raise RecordError(f"{path}: empty file, expected a table with column {column!r}")
+        header = [name.strip() for name in rows[0]]
+        if column in header:
+            index, first_data_line = header.index(column), 2
+        elif column.isdigit():
+            index = int(column)
+        else:
+            raise RecordError(f"{path}: no column {column!r}; the header has {header}")
+    values, blank_line = [], None
+    for line_number, row in enumerate(rows[first_data_line - 1 :], start=first_data_line):
+        if not row or all(not cell.strip() for cell in row):
+            blank_line = blank_line or line_number  # allowed only at the end
+            continue
+        if blank_line is not None:
+            raise RecordError(
+                f"{path}:{blank_line}: blank line inside the record (it would shift every later "
+                "sample against the other signal)"
+            )
+        if column is None and len(row) > 1:
+            raise RecordError(
+                f"{path}:{line_number}: {len(row)} columns; choose one with --input-column or "
+                "--output-column"
+            )
+        if index >= len(row):
+            raise RecordError(f"{path}:{line_number}: has {len(row)} columns, no column {index}")
+        text = row[index].strip()
+        try:
+            value = float(text)
+        except ValueError:
+            raise RecordError(f"{path}:{line_number}: {text!r} is not a number") from None
+        if not math.isfinite(value):
+            raise RecordError(f"{path}:{line_number}: {text!r} is not a finite number")
+        values.append(value)
+    if not values:
+        raise RecordError(f"{path}: no values")
+    return np.array(values)
+
+
+def read_mcap_signals(
+    path: str | Path, *topics_and_fields: str
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Signals from a maskless MCAP recording, read once: (log times in ns, values) for each.
+
+    Args:
+        path: the recording.
+        topics_and_fields: each "TOPIC:FIELD", e.g. "/controller/command:current_a".
+    """
+    wanted = []
+    for topic_and_field in topics_and_fields:
+        topic, separator, field = topic_and_field.rpartition(":")
+        if not separator or not topic or not field:
+            raise RecordError(f"{path}: {topic_and_field!r} should be TOPIC:FIELD")
+        wanted.append((topic, field))
+    try:
+        recording = read_recording(path, topics={topic for topic, _ in wanted})
+    except ValueError as error:
+        raise RecordError(str(error)) from None
+    signals = []
+    for topic, field in wanted:
+        if topic not in recording.messages:
+            raise RecordError(f"{path}: no topic {topic!r}; it has {sorted(recording.messages)}")
+        messages = recording.messages[topic]
+        if messages and field not in messages[0][1]:
+            raise RecordError(
+                f"{path}: topic {topic} has no field {field!r}; it has {sorted(messages[0][1])}"
+            )
+        times, values = recording.topic_arrays(topic, field)
+        values = np.asarray(values, dtype=float)
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise RecordError(f"{path}: {topic}:{field} message {bad[0]} is not a finite number")
+        signals.append((times, values))
+    return signals
+
+
+def parse_range(text: str, samples: int, what: str) -> slice:
+    """A part of a record from "START:STOP": fractions (0:0.6) or sample indices (0:11782).
+
+    Bounds that are both at most 1, or written with a decimal point, are fractions of the record.
+    """
+    expected = f"{what} = {text!r}: expected START:STOP, e.g. 0:0.6 or 0:11782"
+    start_text, separator, stop_text = text.partition(":")
+    try:
+        bounds = [float(start_text), float(stop_text)]
+    except ValueError:
+        raise RecordError(expected) from None
+    if not separator or not all(math.isfinite(b) for b in bounds):
+        raise RecordError(expected)
+    fractions = "." in text or max(bounds) <= 1
+    start, stop = (round(b * samples) for b in bounds) if fractions else (int(b) for b in bounds)
+    if not 0 <= start < stop <= samples:
+        raise RecordError(
+            f"{what} = {text!r}: selects samples {start}..{stop} of a record of {samples}"
+        )
+    return slice(start, stop)
+
+
+@dataclass(frozen=True)
+class Detrended:
+    """A record with its offsets removed.
+
+    Attributes:
+        u, y: the detrended input and output.
+        input_offset, output_offset: what was subtracted: the mean, or the trend line's value at
+            the first sample (for "linear"); 0 for "none".
+        input_slope, output_slope: the trend lines' slopes per sample ("linear"; else 0).
+    """
+
+    u: np.ndarray
+    y: np.ndarray
+    input_offset: float
+    output_offset: float
+    input_slope: float = 0.0
+    output_slope: float = 0.0
+
+
+def detrend(u: np.ndarray, y: np.ndarray, mode: str) -> Detrended:
+    """Removes the whole record's mean ("mean", the authors' preprocessing), its least-squares line
+    ("linear") or nothing ("none")."""
+    if mode == "none":
+        return Detrended(u, y, 0.0, 0.0)
+    if mode == "mean":
+        return Detrended(u - u.mean(), y - y.mean(), float(u.mean()), float(y.mean()))
+    if mode == "linear":
+        u_detrended = scipy.signal.detrend(u, type="linear")
+        y_detrended = scipy.signal.detrend(y, type="linear")
+        u_trend, y_trend = u - u_detrended, y - y_detrended
+        return Detrended(
+            u_detrended,
+            y_detrended,
+            float(u_trend[0]),
+            float(y_trend[0]),
+            float(u_trend[1] - u_trend[0]),
+            float(y_trend[1] - y_trend[0]),
+        )
+    raise RecordError(f"--detrend {mode!r}: expected mean, linear or none")

@@ -1,0 +1,342 @@
+"""Fit models to a record and judge them: figures per part, the baselines, a verdict in words.
+
+Every figure states its horizon and initial-state handling (the report's "horizons" entry says
+which were used): "1step" is the one-step-ahead prediction, "sim" the simulated output from the
+input alone, "kstep" the k-step-ahead prediction (from zero initial conditions). When the initial
+state is estimated, the one-step figures on the estimation part use the estimated x(0); every other
+part and horizon re-estimates x(0) by least squares for that horizon, as MATLAB's ``compare`` does.
+
+The baselines a model must beat (shared/DESIGN.md): "next value = last value"; the same structure
+with no input (ARMA for the noise-model methods, AR for ARX); and the free response of the
+estimated initial state alone.
+"""
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from maskless.analysis.identification.fit_metrics import evaluate_fit, fit_percent
+from maskless.analysis.identification.innovations_model import InnovationsModel
+from maskless.analysis.identification.prediction_error import (
+    estimate_ar,
+    estimate_arx,
+    estimate_pem,
+    parameter_count,
+)
+from maskless.analysis.identification.residual_analysis import residual_correlations
+from maskless.analysis.identification.subspace import default_horizon, estimate_n4sid
+
+METHODS = ("pem", "armax", "arx", "n4sid")
+
+# The verdict's thresholds, in fit points on the validation part. They are conventions, not
+# derived values: 0.1 points is ten times the precision of the fits in the paper's Table I; a
+# simulation must beat the better of zero and the initial state's transient by 10 points to count
+# as input-driven; and 50 % simulation fit is where the input carries most of the output.
+MARGIN_1STEP = 0.1
+MARGIN_SIM = 10.0
+EXPLAINS_SIM = 50.0
+
+
+@dataclass(frozen=True)
+class Part:
+    """A named stretch of a detrended record."""
+
+    name: str
+    u: np.ndarray
+    y: np.ndarray
+
+
+@dataclass(frozen=True)
+class FittedModel:
+    """A model with how it was fitted.
+
+    Attributes:
+        method: the estimator.
+        model: the model.
+        estimated_initial_state: whether x(0) was estimated.
+        parameters: d, the estimated parameters (initial states included when estimated).
+        details: what else the estimator reports (e.g. N4SID's horizon and singular values).
+    """
+
+    method: str
+    model: InnovationsModel
+    estimated_initial_state: bool
+    parameters: int
+    details: dict = field(default_factory=dict)
+
+
+def fit(
+    method: str,
+    part: Part,
+    order: int,
+    sample_period_s: float,
+    estimate_initial_state: bool = True,
+    progress: Callable[[int, float], None] | None = None,
+) -> FittedModel:
+    """Fits one model: "pem" (innovations-form state space) and "armax" (the same model set,
+    ARMAX(n, n, n)) by prediction error, "arx" by least squares (zero initial state), "n4sid" by
+    subspace identification (PO-MOESP)."""
+    count = parameter_count(
+        order,
+        with_input=True,
+        with_noise_model=method != "arx",
+        estimated_initial_state=estimate_initial_state and method != "arx",
+    )
+    if method in ("pem", "armax"):
+        model = estimate_pem(
+            part.u,
+            part.y,
+            order,
+            sample_period_s,
+            estimate_initial_state=estimate_initial_state,
+            progress=progress,
+        )
+        return FittedModel(method, model, estimate_initial_state, count)
+    if method == "arx":
+        model = estimate_arx(part.u, part.y, order, sample_period_s)
+        return FittedModel(method, model, False, count)
+    if method == "n4sid":
+        horizon = default_horizon(order)
+        model, singular_values = estimate_n4sid(
+            part.u,
+            part.y,
+            order,
+            sample_period_s,
+            horizon=horizon,
+            estimate_initial_state=estimate_initial_state,
+            progress=progress,
+        )
+        details = {
+            "horizon": horizon,
+            "singular_values": singular_values[: 2 * order + 2].tolist(),
+        }
+        return FittedModel(method, model, estimate_initial_state, count, details)
+    raise ValueError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
+
+
+def initial_state_for_part(fitted: FittedModel, part: Part, estimation: Part, horizon: str):
+    """The x(0) a figure uses (see the module docstring)."""
+    model = fitted.model
+    if not fitted.estimated_initial_state:
+        return np.zeros(model.order)
+    if part is estimation and horizon == "one_step":
+        return model.initial_state
+    return model.initial_state_for(part.u, part.y, horizon)
+
+
+def part_figures(
+    fitted: FittedModel, part: Part, estimation: Part, k_step: int | None = None
+) -> dict:
+    """fit_percent_1step, fit_percent_sim, mse, fpe, naic, aic, bic and n of one part, and
+    fit_percent_{k}step when ``k_step`` is given; the error figures are those of the one-step
+    prediction. Also the residuals' whiteness (share of lags outside the 99 % bands)."""
+    model = fitted.model
+    x0 = initial_state_for_part(fitted, part, estimation, "one_step")
+    one_step = model.predict(part.u, part.y, x0)
+    simulated = model.simulate(
+        part.u, initial_state_for_part(fitted, part, estimation, "simulation")
+    )
+    metrics = evaluate_fit(part.y, one_step, fitted.parameters)
+    figures = {
+        "fit_percent_1step": metrics.fit_percent,
+        "fit_percent_sim": fit_percent(part.y, simulated),
+        "mse": metrics.mse,
+        "fpe": metrics.fpe,
+        "naic": metrics.naic,
+        "aic": metrics.aic,
+        "bic": metrics.bic,
+        "n": metrics.n,
+    }
+    if k_step is not None:
+        k_ahead = model.predict_k_steps(part.u, part.y, k_step)
+        # The first k samples have no k-step prediction from data.
+        figures[f"fit_percent_{k_step}step"] = fit_percent(part.y[k_step:], k_ahead[k_step:])
+    correlations = residual_correlations(part.y - one_step, part.u)
+    figures["residuals_outside_99_percent_band"] = correlations.fraction_outside()
+    return figures
+
+
+def baseline_figures(fitted: FittedModel, parts: list[Part], progress=None) -> dict:
+    """The same structure without input (one-step fit) and the initial state's free response
+    (simulation fit), per part."""
+    estimation = parts[0]
+    model = fitted.model
+    if fitted.method == "arx":
+        without_input = FittedModel(
+            "ar", estimate_ar(estimation.y, model.order, model.sample_period_s), False, 0
+        )
+    else:
+        without_input = FittedModel(
+            "arma",
+            estimate_pem(
+                estimation.u,
+                estimation.y,
+                model.order,
+                model.sample_period_s,
+                estimate_initial_state=fitted.estimated_initial_state,
+                with_input=False,
+                initial_model=model,  # estimate_pem zeroes b without input
+                progress=progress,
+            ),
+            fitted.estimated_initial_state,
+            0,
+        )
+    figures = {
+        "order": model.order,
+        "method": fitted.method,
+        "without_input_structure": without_input.method,
+        "without_input": {},
+        "free_response": {},
+    }
+    for part in parts:
+        x0 = initial_state_for_part(without_input, part, estimation, "one_step")
+        figures["without_input"][part.name] = {
+            "fit_percent_1step": fit_percent(
+                part.y, without_input.model.predict(part.u, part.y, x0)
+            )
+        }
+        x0 = initial_state_for_part(fitted, part, estimation, "simulation")
+        figures["free_response"][part.name] = {
+            "fit_percent_sim": fit_percent(part.y, model.free_response(part.y.size, x0))
+        }
+    return figures
+
+
+def naive_figures(parts: list[Part]) -> dict:
+    """'Next value = last value': ŷ(k) = y(k-1), per part."""
+    return {p.name: {"fit_percent_1step": fit_percent(p.y[1:], p.y[:-1])} for p in parts}
+
+
+def margins(figures: dict, baselines: dict, naive: dict, part_name: str) -> dict:
+    """By how many fit points the model beats each baseline on one part (negative: it loses)."""
+    return {
+        "naive_last_value": figures["fit_percent_1step"] - naive[part_name]["fit_percent_1step"],
+        "without_input": figures["fit_percent_1step"]
+        - baselines["without_input"][part_name]["fit_percent_1step"],
+        # A transient that fits worse than zero is no baseline to beat.
+        "free_response": figures["fit_percent_sim"]
+        - max(baselines["free_response"][part_name]["fit_percent_sim"], 0.0),
+    }
+
+
+# How a verdict that the input explains the output begins (the workflow checks for it).
+EXPLAINS_VERDICT = "The input explains the output"
+
+
+def verdict(figures: dict, baselines: dict, gains: dict, part_name: str, stable: bool) -> str:
+    """Whether the input explains the output, in plain words, from one part's figures and the
+    model's ``margins`` over the baselines on that part.
+
+    "explains the output": the input-driven simulation fits at least 50 % and beats the initial
+    state's free response (or zero) by 10 points. "essentially nothing": dropping the input costs
+    less than 0.1 points of one-step fit and the simulation does not beat the free response (or
+    zero) by 10 points. Otherwise "part of the output".
+    """
+    structure, order = baselines["without_input_structure"].upper(), baselines["order"]
+    evidence = (
+        f"without the input the same order-{order} structure ({structure}) predicts one step "
+        f"ahead {baselines['without_input'][part_name]['fit_percent_1step']:.3f} % against "
+        f"{figures['fit_percent_1step']:.3f} %, and the model driven by the input alone fits the "
+        f"{part_name} part {figures['fit_percent_sim']:.1f} % "
+        f"({baselines['free_response'][part_name]['fit_percent_sim']:.1f} % from its initial "
+        "state alone)"
+    )
+    if not stable:
+        evidence += "; the model is UNSTABLE"
+    if figures["fit_percent_sim"] >= EXPLAINS_SIM and gains["free_response"] >= MARGIN_SIM:
+        return f"{EXPLAINS_VERDICT}: {evidence}."
+    if gains["without_input"] < MARGIN_1STEP and gains["free_response"] < MARGIN_SIM:
+        return f"The input explains essentially nothing of the output: {evidence}."
+    return f"The input explains part of the output: {evidence}."
+
+
+def identify(
+    method: str,
+    estimation: Part,
+    validation: Part,
+    orders: list[int],
+    sample_period_s: float,
+    estimate_initial_state: bool = True,
+    progress: Callable[[int, float], None] | None = None,
+    k_step: int | None = None,
+    overlap: bool = False,
+) -> tuple[dict, list[FittedModel]]:
+    """Fits each order and builds the report (the JSON of `maskless identify`).
+
+    Args:
+        overlap: the validation part shares samples with the estimation part; the report and
+            the verdict then say that the validation figures are not a holdout.
+    """
+    parts = [estimation, validation]
+    entries, fitted_models, baselines = [], [], []
+    naive = naive_figures(parts)
+    for order in orders:
+        fitted = fit(method, estimation, order, sample_period_s, estimate_initial_state, progress)
+        model = fitted.model
+        figures = {part.name: part_figures(fitted, part, estimation, k_step) for part in parts}
+        model_baselines = baseline_figures(fitted, parts, progress)
+        stable = model.is_stable()
+        gains = margins(figures[validation.name], model_baselines, naive, validation.name)
+        entry = {
+            "method": method,
+            "order": order,
+            "ts": sample_period_s,
+            **{name: matrix.tolist() for name, matrix in model.state_space().items()},
+            "initial_state": "estimated" if fitted.estimated_initial_state else "zero",
+            "parameters": fitted.parameters,
+            "poles": [[float(p.real), float(p.imag)] for p in model.poles()],
+            "stable": stable,
+            "predictor_stable": bool(np.all(np.abs(model.predictor_poles()) < 1)),
+            "dc_gain": model.dc_gain(),
+            **fitted.details,
+            **figures,
+            "margins_on_validation": gains,
+            "verdict": verdict(
+                figures[validation.name], model_baselines, gains, validation.name, stable
+            ),
+        }
+        if method == "armax":
+            entry["polynomials"] = {
+                "A": [1.0, *model.a.tolist()],
+                "B": [0.0, *model.b.tolist()],
+                "C": [1.0, *model.c.tolist()],
+            }
+        if not stable:
+            entry["warning"] = (
+                f"the order-{order} model is unstable (largest pole magnitude "
+                f"{np.abs(model.poles()).max():.6f}); do not design a controller on it"
+            )
+        entries.append(entry)
+        fitted_models.append(fitted)
+        baselines.append(model_baselines)
+    best = max(entries, key=lambda e: e[validation.name]["fit_percent_1step"])
+    warnings = []
+    if overlap:
+        warnings.append(
+            "the validation part overlaps the estimation part: its figures are not a holdout "
+            "and flatter the models"
+        )
+    initial = "estimated" if estimate_initial_state and method != "arx" else "zero"
+    report = {
+        "horizons": {
+            "1step": "one-step-ahead prediction",
+            "sim": "simulation from the input alone",
+            **(
+                {f"{k_step}step": f"{k_step}-step-ahead prediction from zero initial conditions"}
+                if k_step
+                else {}
+            ),
+            "initial_state": (
+                "estimated x(0) for the one-step figures on the estimation part; re-estimated by "
+                "least squares for every other part and horizon"
+                if initial == "estimated"
+                else "zero"
+            ),
+        },
+        "models": entries,
+        "baselines": {"naive_last_value": naive, "per_model": baselines},
+        "warnings": warnings,
+        "verdict": best["verdict"] + (f" Warning: {warnings[0]}." if warnings else ""),
+    }
+    return report, fitted_models

@@ -1,0 +1,368 @@
+"""The first-principles pneumatic plant: "the real robot" the controllers are tested on.
+
+Two forms run the same equations (``pneumatic_physics.state_derivatives``):
+
+- ``PneumaticPlant_``: a scalar-templated LeafSystem (``TemplateSystem``) whose physical constants
+  are numeric parameters, so ``Linearize``, AutoDiff and a parameter change in the Context (a head
+  mass drawn in a Monte Carlo run) work on it. Analysis and design use this form.
+- ``add_pneumatic_plant``: the same derivatives written out as symbolic expressions, integrated
+  by a fixed-step semi-implicit scheme (``semi_implicit_step``) and run by a C++ discrete
+  ``SymbolicVectorSystem``. A Python LeafSystem's derivative callback would cost tens of
+  microseconds per evaluation and the closed loop must run >= 1000x faster than real time; and a
+  continuous SymbolicVectorSystem cannot share a Diagram with the discrete ones of the sensors,
+  filters and controller (Drake 1.51 aborts in SymbolicVectorSystem::DoCalcTimeDerivatives).
+
+Both have the port contract of every maskless plant: two valve currents in (A), the head height
+above the table out (m).
+"""
+
+import dataclasses
+import math
+
+import numpy as np
+import pydrake.math as dm
+from pydrake.common.value import AbstractValue
+from pydrake.symbolic import MakeVectorVariable, Variable
+from pydrake.systems.framework import (
+    BasicVector_,
+    DiagramBuilder,
+    LeafSystem_,
+    NumericParameterIndex,
+    ValueProducer,
+)
+from pydrake.systems.scalar_conversion import TemplateSystem
+from scipy.optimize import brentq
+
+from maskless.systems.config_loading import ConfigError, asset_path, load_config
+from maskless.systems.named_symbolic_system import (
+    PortMap,
+    add_named_symbolic_system,
+    building_expressions,
+    diagram_form,
+)
+from maskless.systems.plant.pneumatic_physics import (
+    GAUGE_PRESSURE,
+    INLET_SPOOL,
+    LIFT,
+    LIFT_RATE,
+    OUTLET_SPOOL,
+    STATE_NAMES,
+    PneumaticParameters,
+    ValveParameters,
+    gauge_pressure_rate,
+    head_force_n,
+    head_height_m,
+    net_flow_of_state,
+    net_mass_flow_kg_s,
+    spool_rate,
+    state_derivatives,
+    valve_opening,
+)
+
+INPUT_NAMES = ("inlet_valve_current_a", "outlet_valve_current_a")
+
+
+def load_pneumatic_parameters() -> PneumaticParameters:
+    """The shipped plant parameters (assets/pneumatic.yaml)."""
+    return load_config(PneumaticParameters, asset_path("pneumatic.yaml"))
+
+
+def validate_pneumatic_parameters(p: PneumaticParameters, prefix: str = "pneumatic") -> None:
+    """Raises ConfigError naming the first field that cannot describe a physical plant."""
+
+    def fail(name, value, expected):
+        raise ConfigError(f"{prefix}.{name} = {value}: expected {expected}")
+
+    nonnegative = {"hysteresis_fraction", "damping_n_s_m"}
+    for name, value in _flat_fields(p):
+        leaf = name.rsplit(".", 1)[-1]
+        if leaf == "min_lift_m":
+            continue
+        if not math.isfinite(value) or value < 0 or (value == 0 and leaf not in nonnegative):
+            fail(name, value, "a positive, finite number")
+    for valve_name in ("inlet", "outlet"):
+        valve: ValveParameters = getattr(p, valve_name)
+        if not valve.saturation_current_a > valve.starting_current_a:
+            fail(
+                f"{valve_name}.saturation_current_a",
+                valve.saturation_current_a,
+                f"above {valve_name}.starting_current_a ({valve.starting_current_a})",
+            )
+        if not valve.hysteresis_fraction <= 0.5:
+            fail(f"{valve_name}.hysteresis_fraction", valve.hysteresis_fraction, "<= 0.5")
+        if not 0 < valve.critical_pressure_ratio < 1:
+            fail(
+                f"{valve_name}.critical_pressure_ratio", valve.critical_pressure_ratio, "in (0, 1)"
+            )
+    if not 0 < p.leak_critical_pressure_ratio < 1:
+        fail("leak_critical_pressure_ratio", p.leak_critical_pressure_ratio, "in (0, 1)")
+    if (
+        not max(
+            p.inlet.critical_pressure_ratio,
+            p.outlet.critical_pressure_ratio,
+            p.leak_critical_pressure_ratio,
+        )
+        < p.laminar_pressure_ratio
+        < 1
+    ):
+        fail(
+            "laminar_pressure_ratio",
+            p.laminar_pressure_ratio,
+            "above every critical pressure ratio and below 1",
+        )
+    if not p.vacuum_absolute_pressure_pa < p.atmospheric_pressure_pa:
+        fail(
+            "vacuum_absolute_pressure_pa",
+            p.vacuum_absolute_pressure_pa,
+            f"below atmospheric_pressure_pa ({p.atmospheric_pressure_pa})",
+        )
+    if not 1.0 <= p.polytropic_exponent <= 1.4:
+        fail("polytropic_exponent", p.polytropic_exponent, "in [1, 1.4] (isothermal..adiabatic)")
+    if not p.min_lift_m < p.max_lift_m:
+        fail("min_lift_m", p.min_lift_m, f"below max_lift_m ({p.max_lift_m})")
+    if not p.rest_volume_m3 + p.volume_per_lift_m2 * p.min_lift_m > 0:
+        fail("rest_volume_m3", p.rest_volume_m3, "a positive volume down to min_lift_m")
+
+
+def _flat_fields(p, prefix: str = ""):
+    """(dotted name, value) of every number in a parameter tree, in declaration order."""
+    for f in dataclasses.fields(p):
+        value = getattr(p, f.name)
+        if dataclasses.is_dataclass(value):
+            yield from _flat_fields(value, f"{prefix}{f.name}.")
+        else:
+            yield f"{prefix}{f.name}", value
+
+
+def parameter_vector(p: PneumaticParameters) -> np.ndarray:
+    """The parameters as one vector, in declaration order (the plant's numeric parameter)."""
+    return np.array([value for _, value in _flat_fields(p)], dtype=float)
+
+
+def parameters_from_vector(values) -> PneumaticParameters:
+    """Inverse of ``parameter_vector``; the entries may be any Drake scalar type."""
+    values = iter(values)
+
+    def fill(cls):
+        kwargs = {}
+        for f in dataclasses.fields(cls):
+            nested = f.default_factory if f.default_factory is not dataclasses.MISSING else None
+            kwargs[f.name] = fill(nested) if nested is not None else next(values)
+        return cls(**kwargs)
+
+    return fill(PneumaticParameters)
+
+
+def steady_gauge_pressure_pa(p: PneumaticParameters, inlet_opening, outlet_opening) -> float:
+    """The gauge pressure at which the bladder's air flows balance for two valve openings."""
+    low = p.vacuum_absolute_pressure_pa - p.atmospheric_pressure_pa
+    return brentq(
+        lambda gauge: net_mass_flow_kg_s(gauge, inlet_opening, outlet_opening, p),
+        low,
+        p.supply_gauge_pressure_pa,
+        xtol=1e-9,
+    )
+
+
+def steady_lift_m(p: PneumaticParameters, gauge_pressure: float) -> float:
+    """The lift at which the head rests for a bladder gauge pressure (travel limits included)."""
+    span = p.max_lift_m - p.min_lift_m
+    return brentq(
+        lambda lift: head_force_n(gauge_pressure, lift, 0.0, p),
+        p.min_lift_m - span,
+        p.max_lift_m + span,
+        xtol=1e-12,
+    )
+
+
+def equilibrium_state(p: PneumaticParameters, inlet_current_a: float, outlet_current_a: float):
+    """The state at rest for constant coil currents, each spool at the centre of its play band."""
+    gauge = steady_gauge_pressure_pa(
+        p, valve_opening(inlet_current_a, p.inlet), valve_opening(outlet_current_a, p.outlet)
+    )
+    state = np.zeros(len(STATE_NAMES))
+    state[GAUGE_PRESSURE] = gauge
+    state[LIFT] = steady_lift_m(p, gauge)
+    state[INLET_SPOOL] = inlet_current_a
+    state[OUTLET_SPOOL] = outlet_current_a
+    return state
+
+
+@TemplateSystem.define("PneumaticPlant_")
+def PneumaticPlant_(T):  # noqa: N802 (Drake template naming)
+    class Impl(LeafSystem_[T]):
+        """The pneumatic plant, templated on the scalar type.
+
+        .. pydrake_system::
+
+            name: pneumatic_plant
+            input_ports:
+            - inlet_valve_current_a
+            - outlet_valve_current_a
+            output_ports:
+            - head_height_m
+            - state
+
+        Args:
+            parameters: the plant's constants (SI); they become the numeric parameter, so a
+                Context can change them.
+            initial_state: the default state (``STATE_NAMES`` order); the equilibrium at zero
+                currents when omitted.
+        """
+
+        def _construct(self, parameters, initial_state=None, converter=None):
+            LeafSystem_[T].__init__(self, converter)
+            self._parameters = parameters
+            if initial_state is None:
+                initial_state = equilibrium_state(parameters, 0.0, 0.0)
+            self._initial_state = np.asarray(initial_state, dtype=float)
+            parameter_index = self.DeclareNumericParameter(
+                BasicVector_[T](parameter_vector(parameters))
+            )
+            # The dataclass of constants is rebuilt only when the parameter changes, not at
+            # every evaluation of the dynamics.
+            self._constants = self.DeclareCacheEntry(
+                "constants",
+                ValueProducer(
+                    allocate=lambda: AbstractValue.Make(parameters),
+                    calc=lambda context, value: value.set_value(
+                        parameters_from_vector(context.get_numeric_parameter(0).CopyToVector())
+                    ),
+                ),
+                {self.numeric_parameter_ticket(NumericParameterIndex(parameter_index))},
+            )
+            state_index = self.DeclareContinuousState(
+                BasicVector_[T](self._initial_state), 0, 0, len(STATE_NAMES)
+            )
+            self._inputs = [self.DeclareVectorInputPort(name, 1) for name in INPUT_NAMES]
+            self.DeclareVectorOutputPort("head_height_m", 1, self._calc_head_height)
+            self.DeclareStateOutputPort("state", state_index)
+
+        def _construct_copy(self, other, converter=None):
+            Impl._construct(self, other._parameters, other._initial_state, converter)
+
+        def parameters(self, context) -> PneumaticParameters:
+            """The constants in ``context`` (of this system's scalar type)."""
+            return self._constants.Eval(context)
+
+        def set_parameters(self, context, parameters: PneumaticParameters) -> None:
+            """Writes new constants (say a drawn head mass) into ``context``."""
+            context.get_mutable_numeric_parameter(0).SetFromVector(parameter_vector(parameters))
+
+        def DoCalcTimeDerivatives(self, context, derivatives):  # noqa: N802 (Drake override)
+            state = context.get_continuous_state_vector().CopyToVector()
+            inlet, outlet = (port.Eval(context)[0] for port in self._inputs)
+            rates = state_derivatives(state, inlet, outlet, self.parameters(context))
+            derivatives.get_mutable_vector().SetFromVector(np.array(rates))
+
+        def _calc_head_height(self, context, output):
+            state = context.get_continuous_state_vector().CopyToVector()
+            output.SetAtIndex(0, head_height_m(state, self.parameters(context)))
+
+    return Impl
+
+
+PneumaticPlant = PneumaticPlant_[None]
+
+
+def semi_implicit_step(state, inlet_current, outlet_current, p: PneumaticParameters, step_s):
+    """One fixed step of the plant, of any scalar type.
+
+    - The head: implicit Euler on its linearised stiffness (fabric, the air spring of the bladder
+      and, when touched, the travel limits) and damping, which is stable at any step; the
+      head-on-air-spring mode (~12 Hz) is stiff next to the 15 Hz loop and would otherwise force
+      steps of a few ms.
+    - The pressure: explicit Euler with the new motion; its slowest flow time constant (~0.6 s at
+      zero gauge) is many steps long.
+    - Each spool: the exact decay of its first-order lag.
+
+    Each piece of physics is evaluated once per step (the compiled expression is evaluated at
+    every step, and its size is its cost).
+    """
+    gauge_pressure, lift = state[GAUGE_PRESSURE], state[LIFT]
+    bladder = p.atmospheric_pressure_pa + gauge_pressure
+    volume = p.rest_volume_m3 + p.volume_per_lift_m2 * lift
+    air_spring_n_m = (
+        p.contact_area_m2 * p.polytropic_exponent * bladder * p.volume_per_lift_m2 / volume
+    )
+    # 1 inside a travel limit, 0 well clear of it (a 0.1 mm ramp keeps it continuous).
+    ramp_m = 1e-4
+    in_limit = dm.min(dm.max((p.min_lift_m - lift) / ramp_m, 0.0), 1.0) + dm.min(
+        dm.max((lift - p.max_lift_m) / ramp_m, 0.0), 1.0
+    )
+    stiffness = p.stiffness_n_m + air_spring_n_m + p.limit_stiffness_n_m * in_limit
+    undamped_force = head_force_n(gauge_pressure, lift, 0.0, p)
+    h_over_m = step_s / p.head_mass_kg
+    lift_rate = (state[LIFT_RATE] + h_over_m * undamped_force) / (
+        1.0 + h_over_m * (p.damping_n_s_m + step_s * stiffness)
+    )
+    next_lift = lift + step_s * lift_rate
+    net_flow = net_flow_of_state(state, p)
+    next_spools = []
+    for spool, current, valve in zip(
+        (state[INLET_SPOOL], state[OUTLET_SPOOL]),
+        (inlet_current, outlet_current),
+        (p.inlet, p.outlet),
+        strict=True,
+    ):
+        # ds/dt = (outside-band error) / tau is linear in s while outside the band: exact decay.
+        gain = valve.time_constant_s * (1.0 - math.exp(-step_s / valve.time_constant_s))
+        next_spools.append(spool + gain * spool_rate(current, spool, valve))
+    pressure_rate = gauge_pressure_rate(gauge_pressure, next_lift, lift_rate, net_flow, p)
+    return [gauge_pressure + step_s * pressure_rate, next_lift, lift_rate, *next_spools]
+
+
+@building_expressions
+def add_pneumatic_plant(
+    builder: DiagramBuilder,
+    parameters: PneumaticParameters,
+    initial_state,
+    step_s: float,
+    name: str = "pneumatic_plant",
+) -> PortMap:
+    """Adds the pneumatic plant, compiled to a SymbolicVectorSystem, to ``builder``.
+
+    .. pydrake_system::
+
+        name: pneumatic_plant
+        input_ports:
+        - inlet_valve_current_a
+        - outlet_valve_current_a
+        output_ports:
+        - head_height_m
+        - state
+
+    Args:
+        builder: where the plant goes.
+        parameters: the plant's constants (SI), fixed at build time.
+        initial_state: where a fresh Context starts (``STATE_NAMES`` order), usually
+            ``equilibrium_state`` at the starting currents.
+        step_s: the fixed integration step (s); the coil currents are sampled each step.
+        name: the system's name.
+
+    The state is stored as its offset from ``initial_state`` (a SymbolicVectorSystem's default
+    state is zero); the ``state`` output gives it back in absolute terms.
+    """
+    initial_state = np.asarray(initial_state, dtype=float)
+    offset = MakeVectorVariable(len(STATE_NAMES), "x")
+    state = [initial_state[k] + offset[k] for k in range(len(STATE_NAMES))]
+    inlet, outlet = Variable(INPUT_NAMES[0]), Variable(INPUT_NAMES[1])
+    return add_named_symbolic_system(
+        builder,
+        name,
+        inputs=[(INPUT_NAMES[0], [inlet]), (INPUT_NAMES[1], [outlet])],
+        outputs=[("head_height_m", [head_height_m(state, parameters)]), ("state", state)],
+        state=list(offset),
+        dynamics=[
+            next_value - start
+            for next_value, start in zip(
+                semi_implicit_step(state, inlet, outlet, parameters, step_s),
+                initial_state,
+                strict=True,
+            )
+        ],
+        time_period=step_s,
+    )
+
+
+make_pneumatic_plant = diagram_form(add_pneumatic_plant)

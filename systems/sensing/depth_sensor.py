@@ -1,0 +1,247 @@
+"""Measurement models of the two depth cameras: ``kinect_v1`` (structured light) and ``kinect_v2``
+(time of flight). Both share one port contract: the true head height above the table in (m); the
+camera-to-face distance (m) and a validity flag out, one frame per frame period.
+
+Each frame: the head height from ``latency`` ago becomes a distance below the camera; published
+axial noise is added (Kinect v1: Nguyen, Izadi, Lovell 2012; Kinect v2: Fankhauser et al. 2015, plus
+a constant offset and a warm-up drift); the distance is quantised (v1: 11-bit disparity, v2: depth
+resolution); a frame outside the working range or dropped (probability ``dropout_probability``, the
+zeros in the authors' logs) reads 0 with ``valid`` = 0, as a Kinect reports invalid pixels.
+"""
+
+import math
+from dataclasses import dataclass
+from statistics import NormalDist
+
+from pydrake.common import RandomDistribution
+from pydrake.symbolic import (
+    Expression,
+    MakeVectorVariable,
+    Variable,
+    exp,
+    floor,
+    if_then_else,
+    logical_and,
+    sqrt,
+)
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import RandomSource
+
+from maskless.systems.config_loading import UNSET, ConfigError
+from maskless.systems.named_symbolic_system import (
+    PortMap,
+    add_named_symbolic_system,
+    building_expressions,
+    diagram_form,
+)
+from maskless.systems.units import mm_to_m
+
+# Kinect v1 disparity-to-depth model z = 1 / (DISPARITY_SLOPE d + DISPARITY_INTERCEPT), d the 11-bit
+# raw disparity (shared/DESIGN.md).
+DISPARITY_SLOPE = -0.00307
+DISPARITY_INTERCEPT = 3.3309
+
+
+@dataclass
+class DepthSensorConfig:
+    """What both camera models share. Every field is set in assets/simulation.yaml.
+
+    Attributes:
+        mount_height_m: camera height above the table (m).
+        frame_rate_hz: frames per second delivered to the filter.
+        latency_s: from the head's motion to the frame reaching its filter (s); realised as whole
+            frames, at least one (a frame reaches its filter at the filter's next tick).
+        dropout_probability: probability that a frame is invalid (reads 0).
+        incidence_angle_rad: angle between the camera axis and the face normal (rad).
+        min_range_m: nearest valid distance (m).
+        max_range_m: farthest valid distance (m).
+    """
+
+    mount_height_m: float = UNSET
+    frame_rate_hz: float = UNSET
+    latency_s: float = UNSET
+    dropout_probability: float = UNSET
+    incidence_angle_rad: float = UNSET
+    min_range_m: float = UNSET
+    max_range_m: float = UNSET
+
+
+@dataclass
+class KinectV1Config(DepthSensorConfig):
+    """Kinect v1 (Xbox 360, structured light); no fields beyond the shared ones."""
+
+
+@dataclass
+class KinectV2Config(DepthSensorConfig):
+    """Kinect v2 (time of flight).
+
+    Attributes:
+        offset_m: constant range offset left after calibration (m).
+        warmup_drift_m: range drift at power-on, decaying exponentially (m).
+        warmup_time_constant_s: time constant of that decay (s).
+        warmup_elapsed_s: how long the camera has been on when the simulation starts (s).
+        resolution_m: depth quantisation step (m).
+    """
+
+    offset_m: float = UNSET
+    warmup_drift_m: float = UNSET
+    warmup_time_constant_s: float = UNSET
+    warmup_elapsed_s: float = UNSET
+    resolution_m: float = UNSET
+
+
+def kinect_v1_noise_std_m(distance_m, incidence_angle_rad=0.0):
+    """Axial noise std of Kinect v1 (Nguyen, Izadi, Lovell 2012), m; ``distance_m`` in m."""
+    lateral = incidence_angle_rad**2 / (math.pi / 2 - incidence_angle_rad) ** 2
+    return 0.0012 + 0.0019 * (distance_m - 0.4) ** 2 + 0.0001 / sqrt_any(distance_m) * lateral
+
+
+def kinect_v2_noise_std_m(distance_m, incidence_angle_rad=0.0):
+    """Axial noise std of Kinect v2 (Fankhauser et al. 2015), m; ``distance_m`` in m."""
+    lateral = incidence_angle_rad**2 / (math.pi / 2 - incidence_angle_rad) ** 2
+    std_mm = 1.5 - 0.5 * distance_m + 0.3 * distance_m**2 + 0.1 * distance_m**1.5 * lateral
+    return mm_to_m(std_mm)
+
+
+def kinect_v1_quantised_distance_m(distance_m):
+    """The distance a Kinect v1 reports: the nearest 11-bit disparity level, back in m."""
+    disparity = (1.0 / distance_m - DISPARITY_INTERCEPT) / DISPARITY_SLOPE
+    level = floor_any(disparity + 0.5)
+    return 1.0 / (DISPARITY_SLOPE * level + DISPARITY_INTERCEPT)
+
+
+def sqrt_any(value):
+    return sqrt(value) if isinstance(value, Expression | Variable) else math.sqrt(value)
+
+
+def floor_any(value):
+    return floor(value) if isinstance(value, Expression | Variable) else math.floor(value)
+
+
+def latency_frames(config: DepthSensorConfig) -> int:
+    """The configured latency as whole frames (at least one)."""
+    return max(1, math.floor(config.latency_s * config.frame_rate_hz + 0.5))
+
+
+def validate_sensor_config(name: str, config: DepthSensorConfig) -> None:
+    """Raises ConfigError naming the field when a sensor's parameters are out of range."""
+
+    def fail(field_name, expected):
+        value = getattr(config, field_name)
+        raise ConfigError(f"{name}.{field_name} = {value}: expected {expected}")
+
+    if not config.frame_rate_hz > 0:
+        fail("frame_rate_hz", "a positive rate")
+    if not config.latency_s >= 0.5 / config.frame_rate_hz:
+        fail(
+            "latency_s",
+            f"at least half a frame period, {0.5 / config.frame_rate_hz:.4f} s (it is rounded "
+            "to whole frames, at least one)",
+        )
+    if not 0.0 <= config.dropout_probability < 1.0:
+        fail("dropout_probability", "a probability in [0, 1)")
+    if not 0.0 <= config.incidence_angle_rad < math.pi / 2:
+        fail("incidence_angle_rad", "an angle in [0, pi/2)")
+    if not 0.0 < config.min_range_m < config.max_range_m:
+        fail("min_range_m", "0 < min_range_m < max_range_m")
+    if not config.mount_height_m > 0:
+        fail("mount_height_m", "a positive height")
+    if isinstance(config, KinectV2Config):
+        if not config.warmup_time_constant_s > 0:
+            fail("warmup_time_constant_s", "a positive time constant")
+        if not config.resolution_m > 0:
+            fail("resolution_m", "a positive step")
+
+
+def add_depth_sensor(builder: DiagramBuilder, name: str, config: DepthSensorConfig) -> PortMap:
+    """Adds a camera model to ``builder``: ``kinect_v1`` for a KinectV1Config, ``kinect_v2`` for
+    a KinectV2Config.
+
+    .. pydrake_system::
+
+        name: kinect_v1
+        input_ports:
+        - head_height_m
+        output_ports:
+        - distance_m
+        - valid
+
+    Args:
+        builder: where the sensor's systems go.
+        name: the sensor's name (and its name in recordings); its noise source is ``{name}.noise``.
+        config: the sensor's parameters.
+
+    Noise comes from one Gaussian RandomSource, two draws per frame (the axial noise, and the
+    dropout draw compared with the normal quantile of ``dropout_probability``), so a run
+    seeded with ``diagram.SetRandomContext`` is reproducible bit for bit. Until the delay line
+    has filled (and before the first frame), frames are invalid.
+    """
+    validate_sensor_config(name, config)
+    period_s = 1.0 / config.frame_rate_hz
+    noise = builder.AddNamedSystem(
+        f"{name}.noise", RandomSource(RandomDistribution.kGaussian, 2, period_s)
+    )
+    ports = _add_frame_dynamics(builder, name, config, period_s)
+    builder.Connect(noise.get_output_port(), ports.inputs.pop("standard_normal"))
+    return ports
+
+
+@building_expressions
+def _add_frame_dynamics(
+    builder: DiagramBuilder, name: str, config: DepthSensorConfig, period_s: float
+) -> PortMap:
+    delay = latency_frames(config) - 1  # the filter's next tick supplies the last frame of latency
+    t = Variable("t")
+    head_height = Variable("head_height_m")
+    normal, dropout_draw = MakeVectorVariable(2, "standard_normal")
+    # State: heights seen 1..delay frames ago, then the last frame's distance and validity. Heights
+    # are stored as offsets from the camera (h - mount = -distance) so the zero default state is a
+    # head at the camera, which only the invalid first frame ever sees.
+    history = MakeVectorVariable(delay, "height_history") if delay > 0 else []
+    distance_state = Variable("distance_m")
+    valid_state = Variable("valid")
+    mount = config.mount_height_m
+    measured_height = (history[-1] + mount) if delay > 0 else head_height
+    true_distance = mount - measured_height
+
+    if isinstance(config, KinectV1Config):
+        std = kinect_v1_noise_std_m(true_distance, config.incidence_angle_rad)
+        reported = kinect_v1_quantised_distance_m(true_distance + std * normal)
+    elif isinstance(config, KinectV2Config):
+        drift = config.warmup_drift_m * exp(
+            -(t + config.warmup_elapsed_s) / config.warmup_time_constant_s
+        )
+        std = kinect_v2_noise_std_m(true_distance, config.incidence_angle_rad)
+        noisy = true_distance + config.offset_m + drift + std * normal
+        reported = config.resolution_m * floor(noisy / config.resolution_m + 0.5)
+    else:
+        raise TypeError(f"{name}: no camera model for config type {type(config).__name__}")
+
+    in_range = logical_and(true_distance >= config.min_range_m, true_distance <= config.max_range_m)
+    if config.dropout_probability > 0:
+        # P(draw < Φ⁻¹(p)) = p for a standard normal draw.
+        threshold = NormalDist().inv_cdf(config.dropout_probability)
+        valid = logical_and(in_range, dropout_draw >= threshold)
+    else:
+        valid = in_range
+    next_history = [head_height - mount] + list(history[:-1]) if delay > 0 else []
+    return add_named_symbolic_system(
+        builder,
+        name,
+        inputs=[
+            ("head_height_m", [head_height]),
+            ("standard_normal", [normal, dropout_draw]),
+        ],
+        outputs=[("distance_m", [distance_state]), ("valid", [valid_state])],
+        state=list(history) + [distance_state, valid_state],
+        dynamics=next_history
+        + [
+            if_then_else(valid, reported, Expression(0.0)),
+            if_then_else(valid, Expression(1.0), Expression(0.0)),
+        ],
+        time=t,
+        time_period=period_s,
+    )
+
+
+make_depth_sensor = diagram_form(add_depth_sensor)

@@ -1,0 +1,84 @@
+from dataclasses import dataclass, field
+
+import pytest
+
+from maskless.systems.config_loading import (
+    UNSET,
+    ConfigError,
+    asset_path,
+    find_unset_fields,
+    load_config,
+)
+
+
+@dataclass
+class Inner:
+    gain_m: float = UNSET
+    count: int = 1
+
+
+@dataclass
+class Outer:
+    inner: Inner = field(default_factory=Inner)
+    values_m: list[float] = field(default_factory=list)
+    label: str = "x"
+
+
+def write(tmp_path, text):
+    path = tmp_path / "config.yaml"
+    path.write_text(text)
+    return path
+
+
+def test_loads_nested_values_over_defaults(tmp_path):
+    path = write(tmp_path, "inner:\n  gain_m: 0.5\nvalues_m: [1, 2]\n")
+    config = load_config(Outer, path, defaults=Outer(label="kept"))
+    assert config == Outer(inner=Inner(gain_m=0.5, count=1), values_m=[1.0, 2.0], label="kept")
+
+
+def test_unknown_field_is_refused_naming_file_and_dotted_field(tmp_path):
+    path = write(tmp_path, "inner:\n  gain_mm: 0.5\n")
+    with pytest.raises(
+        ConfigError,
+        match=r"config\.yaml: unknown field 'inner\.gain_mm'.*"
+        r"did you mean 'inner\.gain_m'",
+    ):
+        load_config(Outer, path, defaults=Outer())
+
+
+@pytest.mark.parametrize(
+    "text, field_name, expected",
+    [
+        ("inner:\n  gain_m: fast\n", "inner.gain_m", "a number"),
+        ("inner:\n  gain_m: true\n", "inner.gain_m", "a number"),
+        ("inner:\n  count: 2.5\n", "inner.count", "an integer"),
+        ("values_m: 3\n", "values_m", "a list"),
+        ("values_m: [1, x]\n", r"values_m\[1\]", "a number"),
+        ("inner: 4\n", "inner", "a mapping"),
+    ],
+)
+def test_mistyped_field_is_refused_naming_the_field(tmp_path, text, field_name, expected):
+    path = write(tmp_path, text)
+    with pytest.raises(ConfigError, match=f"'?{field_name}'?.*{expected}"):
+        load_config(Outer, path, defaults=Outer())
+
+
+def test_unset_required_field_is_reported(tmp_path):
+    path = write(tmp_path, "label: y\n")
+    with pytest.raises(ConfigError, match=r"required fields not set: inner\.gain_m"):
+        load_config(Outer, path)
+    assert find_unset_fields(Outer()) == ["inner.gain_m"]
+
+
+def test_missing_file_and_bad_yaml(tmp_path):
+    with pytest.raises(FileNotFoundError, match="nothing.yaml"):
+        load_config(Outer, tmp_path / "nothing.yaml")
+    path = write(tmp_path, "inner: [unclosed\n")
+    with pytest.raises(ConfigError, match="not valid YAML"):
+        load_config(Outer, path, defaults=Outer())
+
+
+def test_asset_path_names_a_missing_asset():
+    assert asset_path("paper.yaml").is_file()
+    with pytest.raises(FileNotFoundError, match="no_such.yaml"):
+        asset_path("no_such.yaml")

@@ -1,0 +1,82 @@
+import numpy as np
+import pytest
+
+from maskless.analysis.identification.records import (
+    RecordError,
+    detrend,
+    parse_range,
+    read_csv_signal,
+)
+
+
+def write(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_one_value_per_line_with_trailing_blank_line(tmp_path):
+    path = write(tmp_path, "u.csv", "1.5\n2\n-3e-1\n\n")
+    np.testing.assert_array_equal(read_csv_signal(path), [1.5, 2.0, -0.3])
+
+
+def test_column_by_header_name_and_by_index(tmp_path):
+    path = write(tmp_path, "t.csv", "time,current_ma\n0,80\n0.048,81\n")
+    np.testing.assert_array_equal(read_csv_signal(path, "current_ma"), [80.0, 81.0])
+    path = write(tmp_path, "n.csv", "0,80\n0.048,81\n")
+    np.testing.assert_array_equal(read_csv_signal(path, "1"), [80.0, 81.0])
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("1\n2\nabc\n", r"u\.csv:3: 'abc' is not a number"),
+        ("1\nnan\n", r"u\.csv:2: 'nan' is not a finite number"),
+        ("", r"u\.csv: no values"),
+        ("\n\n", r"u\.csv: no values"),
+    ],
+)
+def test_bad_records_name_file_and_line(tmp_path, text, message):
+    path = write(tmp_path, "u.csv", text)
+    with pytest.raises(RecordError, match=message):
+        read_csv_signal(path)
+
+
+def test_unknown_column_and_missing_file(tmp_path):
+    path = write(tmp_path, "t.csv", "time,current_ma\n0,80\n")
+    with pytest.raises(RecordError, match="no column 'current_a'"):
+        read_csv_signal(path, "current_a")
+    with pytest.raises(FileNotFoundError, match="nothing.csv"):
+        read_csv_signal(tmp_path / "nothing.csv")
+
+
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("0:0.6", slice(0, 11782)),
+        ("0.6:1", slice(11782, 19637)),
+        ("0:11782", slice(0, 11782)),
+        ("100:200", slice(100, 200)),
+    ],
+)
+def test_ranges_take_fractions_or_indices(text, expected):
+    assert parse_range(text, 19637, "--estimation") == expected
+
+
+@pytest.mark.parametrize("text", ["0.6", "a:b", "0:30000", "0.5:0.2"])
+def test_bad_ranges_are_refused_naming_the_flag(text):
+    with pytest.raises(RecordError, match="--validation"):
+        parse_range(text, 19637, "--validation")
+
+
+def test_detrend_modes():
+    t = np.arange(100.0)
+    u, y = 2 + 0.5 * t, 10 - 0.1 * t
+    mean = detrend(u, y, "mean")
+    assert mean.input_offset == pytest.approx(u.mean()) and abs(mean.y.mean()) < 1e-12
+    linear = detrend(u, y, "linear")
+    np.testing.assert_allclose(linear.u, 0, atol=1e-9)
+    assert linear.input_offset == pytest.approx(2.0) and linear.output_offset == pytest.approx(10.0)
+    assert detrend(u, y, "none").u is u
+    with pytest.raises(RecordError, match="--detrend"):
+        detrend(u, y, "quadratic")

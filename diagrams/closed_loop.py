@@ -23,7 +23,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from maskless.analysis.identification.model_file import load_identified_model
 from maskless.diagrams.scenario import ReferenceConfig, SimulationConfig, model_file_of
-from maskless.systems.config_loading import ConfigError
+from maskless.errors import ConfigError
 from maskless.systems.control.offset_free_lqg import (
     add_offset_free_lqg,
     design_model_from_identified,

@@ -5,13 +5,8 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from maskless.systems.config_loading import (
-    UNSET,
-    ConfigError,
-    asset_path,
-    find_unset_fields,
-    load_config,
-)
+from maskless.errors import ConfigError
+from maskless.systems.config_loading import UNSET, asset_path, find_unset_fields, load_config
 from maskless.systems.control.offset_free_lqg import OffsetFreeLqgWeights
 from maskless.systems.paper_parameters import (
     PaperParameters,

@@ -16,13 +16,11 @@ from pathlib import Path
 import yaml
 from pydrake.common.yaml import yaml_load_typed
 
+from maskless.errors import ConfigError
+
 # A float field whose value must come from a YAML file (the shipped assets), so every published
 # number is written once, in assets/, and never repeated as a Python default.
 UNSET = math.nan
-
-
-class ConfigError(ValueError):
-    """A configuration file or value is invalid; the message names the file and the field."""
 
 
 def asset_path(name: str) -> Path:

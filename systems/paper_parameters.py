@@ -7,7 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from maskless.systems.config_loading import UNSET, ConfigError, asset_path, load_config
+from maskless.errors import ConfigError
+from maskless.systems.config_loading import UNSET, asset_path, load_config
 from maskless.systems.units import MA_PER_A, MM_PER_M, ma_to_a, mm2_to_m2, mm_to_m
 
 

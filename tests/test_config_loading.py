@@ -2,13 +2,8 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from maskless.systems.config_loading import (
-    UNSET,
-    ConfigError,
-    asset_path,
-    find_unset_fields,
-    load_config,
-)
+from maskless.errors import ConfigError
+from maskless.systems.config_loading import UNSET, asset_path, find_unset_fields, load_config
 
 
 @dataclass

@@ -9,7 +9,7 @@ from pydrake.systems.primitives import TrajectorySource, VectorLogSink
 from pydrake.trajectories import PiecewisePolynomial
 from system_harness import port_layout, simulate_with_constant_inputs
 
-from maskless.systems.config_loading import ConfigError
+from maskless.errors import ConfigError
 from maskless.systems.sensing.depth_sensor import (
     KinectV1Config,
     KinectV2Config,

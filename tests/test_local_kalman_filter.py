@@ -3,7 +3,7 @@ import pytest
 import scipy.linalg
 from system_harness import port_layout
 
-from maskless.systems.config_loading import ConfigError
+from maskless.errors import ConfigError
 from maskless.systems.sensing.local_kalman_filter import (
     LocalFilterConfig,
     make_local_kalman_filter,

@@ -7,7 +7,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 from system_harness import port_layout
 
-from maskless.systems.config_loading import ConfigError
+from maskless.errors import ConfigError
 from maskless.systems.plant.pneumatic_design import linearize_pneumatic_plant
 from maskless.systems.plant.pneumatic_physics import (
     GAUGE_PRESSURE,

@@ -1,12 +1,8 @@
 import numpy as np
 import pytest
 
-from maskless.analysis.identification.records import (
-    RecordError,
-    detrend,
-    parse_range,
-    read_csv_signal,
-)
+from maskless.analysis.identification.records import detrend, parse_range, read_csv_signal
+from maskless.errors import RecordError
 
 
 def write(tmp_path, name, text):

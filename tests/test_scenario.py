@@ -1,7 +1,7 @@
 import pytest
 
 from maskless.diagrams.scenario import load_simulation_config
-from maskless.systems.config_loading import ConfigError
+from maskless.errors import ConfigError
 
 
 def test_shipped_defaults_are_complete_and_valid(config):

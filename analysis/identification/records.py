@@ -12,11 +12,8 @@ from pathlib import Path
 import numpy as np
 import scipy.signal
 
+from maskless.errors import RecordError
 from maskless.recording import read_recording
-
-
-class RecordError(ValueError):
-    """An identification record cannot be used; the message names the file (and line)."""
 
 
 def read_csv_signal(path: str | Path, column: str | None = None) -> np.ndarray:

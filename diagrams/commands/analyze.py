@@ -19,7 +19,7 @@ import math
 from pathlib import Path
 
 from maskless.diagrams.cli import add_config_argument
-from maskless.systems.config_loading import ConfigError
+from maskless.errors import ConfigError
 
 # What `maskless analyze` reports as a message rather than a traceback.
 USER_ERRORS = (ConfigError, FileNotFoundError)

@@ -37,8 +37,8 @@ from maskless.diagrams.commands.simulate import (
     simulate_loop,
 )
 from maskless.diagrams.scenario import SimulationConfig, load_config_with_overrides
+from maskless.errors import ConfigError
 from maskless.recording import write_recording
-from maskless.systems.config_loading import ConfigError
 from maskless.systems.control.excitation import (
     ExcitationSignal,
     add_excitation_source,

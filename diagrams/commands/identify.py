@@ -19,7 +19,6 @@ import yaml
 from maskless.analysis.identification.model_file import model_file_contents
 from maskless.analysis.identification.plots import plot_compare, plot_residuals
 from maskless.analysis.identification.records import (
-    RecordError,
     detrend,
     parse_range,
     read_csv_signal,
@@ -28,6 +27,7 @@ from maskless.analysis.identification.records import (
 from maskless.analysis.identification.report import METHODS, Part, identify
 from maskless.analysis.identification.subspace import default_horizon
 from maskless.diagrams.background import BackgroundTask
+from maskless.errors import RecordError
 from maskless.recording import COMMAND_TOPIC, FUSION_TOPIC
 
 # What `maskless identify` reports as a message rather than a traceback.

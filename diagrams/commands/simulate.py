@@ -25,6 +25,7 @@ from maskless.diagrams.background import Worker, serve_calls
 from maskless.diagrams.cli import add_config_argument
 from maskless.diagrams.closed_loop import ClosedLoop, build_closed_loop
 from maskless.diagrams.scenario import SimulationConfig, load_config_with_overrides
+from maskless.errors import ConfigError
 from maskless.recording import (
     COMMAND_TOPIC,
     FUSION_TOPIC,
@@ -35,7 +36,6 @@ from maskless.recording import (
     sensor_measurement_topic,
     write_recording_batches,
 )
-from maskless.systems.config_loading import ConfigError
 
 # What `maskless simulate` reports as a message rather than a traceback.
 USER_ERRORS = (ConfigError, FileNotFoundError)

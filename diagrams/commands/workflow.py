@@ -27,9 +27,9 @@ from maskless.analysis.summary import tracking_lines
 from maskless.diagrams.cli import add_config_argument
 from maskless.diagrams.commands import excite, identify, simulate
 from maskless.diagrams.commands.excite import SIGNALS
-from maskless.systems.config_loading import ConfigError
+from maskless.errors import ConfigError, RecordError
 
-USER_ERRORS = (ConfigError, FileNotFoundError, ValueError, identify.RecordError)
+USER_ERRORS = (ConfigError, FileNotFoundError, ValueError, RecordError)
 
 
 def _stage_args(module, argv: list[str]) -> argparse.Namespace:

@@ -33,7 +33,8 @@ from pydrake.systems.framework import (
 from pydrake.systems.scalar_conversion import TemplateSystem
 from scipy.optimize import brentq
 
-from maskless.systems.config_loading import ConfigError, asset_path, load_config
+from maskless.errors import ConfigError
+from maskless.systems.config_loading import asset_path, load_config
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,

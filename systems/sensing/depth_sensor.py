@@ -27,7 +27,8 @@ from pydrake.symbolic import (
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import RandomSource
 
-from maskless.systems.config_loading import UNSET, ConfigError
+from maskless.errors import ConfigError
+from maskless.systems.config_loading import UNSET
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,

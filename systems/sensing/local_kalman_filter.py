@@ -26,7 +26,8 @@ from pydrake.math import DiscreteAlgebraicRiccatiEquation
 from pydrake.symbolic import Expression, MakeVectorVariable, Variable, if_then_else, logical_and
 from pydrake.systems.framework import DiagramBuilder
 
-from maskless.systems.config_loading import UNSET, ConfigError
+from maskless.errors import ConfigError
+from maskless.systems.config_loading import UNSET
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,

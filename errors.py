@@ -1,0 +1,28 @@
+"""The errors maskless reports to a user: one family, so a caller (the CLI, a script) can tell a bad
+input from a bug.
+
+Every error here names what was wrong (the file, the field, the flag or the argument) and what was
+expected. Each also subclasses the built-in error a Python caller would expect (ValueError,
+FileNotFoundError), so ``except ValueError`` keeps working. Anything else that escapes the library
+is a bug and keeps its traceback.
+"""
+
+
+class MasklessError(Exception):
+    """Base of every error maskless reports to a user."""
+
+
+class ConfigError(MasklessError, ValueError):
+    """A configuration file, field, flag or argument is invalid."""
+
+
+class RecordError(MasklessError, ValueError):
+    """A recorded signal (CSV or MCAP) cannot be read or used as asked."""
+
+
+class ModelError(MasklessError, ValueError):
+    """A model cannot serve what it was asked for (say, a design on an integrating model)."""
+
+
+class MissingFileError(MasklessError, FileNotFoundError):
+    """A file the user named does not exist."""

@@ -28,8 +28,8 @@ from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 
 from maskless.analysis.metrics import tracking_metrics
 from maskless.diagrams.closed_loop import NominalPneumatic, add_plant
-from maskless.diagrams.commands.simulate import run_closed_loop
-from maskless.diagrams.scenario import load_simulation_config
+from maskless.diagrams.scenario import load_scenario
+from maskless.diagrams.simulation import simulate
 from maskless.systems.plant.pneumatic_design import steady_lift_curve
 from maskless.systems.units import m_to_mm
 
@@ -117,7 +117,7 @@ def fastest_entry_s(base, nominal, trial: dict) -> float | None:
 
 def run_trial(base, nominal, seed: int, trial: dict, controller: str) -> dict:
     config = trial_config(base, seed, trial, controller)
-    run = run_closed_loop(config, nominal=nominal)
+    run = simulate(config, nominal=nominal)
     head = run.signals["head_height_m"]
     reference = run.signals["reference_head_height_m"].values[0]
     metrics = tracking_metrics(
@@ -225,7 +225,7 @@ def main():
     rng = np.random.default_rng(args.seed)
     # What every trial shares is built once: the config, and the nominal head's inverse (trials
     # change the head's mass, which the nominal head ignores).
-    base = load_simulation_config()
+    base = load_scenario()
     nominal = NominalPneumatic.of(base)
     top_lift_m = nominal_top_lift_m(base)
     trials = [draw_trial(rng, base, top_lift_m) for _ in range(args.trials)]

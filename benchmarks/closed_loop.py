@@ -18,7 +18,7 @@ from pydrake.systems.analysis import Simulator
 
 from maskless.diagrams.cli import main as maskless_main
 from maskless.diagrams.closed_loop import build_closed_loop
-from maskless.diagrams.scenario import load_simulation_config
+from maskless.diagrams.scenario import load_scenario
 
 DEFAULT_DURATION_S = 120.0
 
@@ -28,7 +28,7 @@ from machine import machine_description  # noqa: E402
 
 def core_real_time_factor(duration_s: float, repeats: int) -> float:
     """Best of ``repeats``: the diagram alone, built once, simulated from a fresh context."""
-    config = load_simulation_config()
+    config = load_scenario()
     loop = build_closed_loop(config, record=False)
     best = float("inf")
     for _ in range(repeats):

@@ -21,8 +21,8 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import ConstantVectorSource, SymbolicVectorSystem
 
-from maskless.diagrams.commands.simulate import recording_channels, run_closed_loop
-from maskless.diagrams.scenario import load_simulation_config
+from maskless.diagrams.scenario import load_scenario
+from maskless.diagrams.simulation import simulate
 from maskless.recording import Channel, write_recording
 from maskless.systems.sensing.local_kalman_filter import (
     LocalFilterConfig,
@@ -143,9 +143,9 @@ def main():
     symbolic_s = min(seconds_per_filter_update(symbolic_filter, 300) for _ in range(args.repeats))
     flat_s = min(seconds_per_step(nested=False) for _ in range(args.repeats))
     nested_s = min(seconds_per_step(nested=True) for _ in range(args.repeats))
-    config = load_simulation_config()
+    config = load_scenario()
     config.duration_s = 600.0
-    channels = recording_channels(run_closed_loop(config))
+    channels = simulate(config).recording_channels()
     template_s = seconds_to_write(channels, args.repeats)
     json_s = seconds_to_write([with_a_nan(c) for c in channels], args.repeats)
     print(

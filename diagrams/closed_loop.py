@@ -22,7 +22,16 @@ from pydrake.systems.primitives import (
 from pydrake.trajectories import PiecewisePolynomial
 
 from maskless.analysis.identification.model_file import load_identified_model
-from maskless.diagrams.scenario import ReferenceConfig, SimulationConfig, model_file_of
+from maskless.diagrams.scenario import (
+    OffsetFreeLqg,
+    PaperLqg,
+    PaperPlant,
+    PneumaticPlant,
+    ReferenceConfig,
+    Scenario,
+    kind_name,
+    shorthand,
+)
 from maskless.errors import ConfigError
 from maskless.systems.control.offset_free_lqg import (
     add_offset_free_lqg,
@@ -50,6 +59,14 @@ from maskless.systems.units import ma_to_a
 
 # Far beyond any run, so the last reference value holds for the rest of the simulation.
 _REFERENCE_HOLD_S = 1.0e9
+
+
+@dataclass
+class Signal:
+    """A logged signal: sample times (s) and values (rows = the port's components)."""
+
+    times_s: np.ndarray
+    values: np.ndarray
 
 
 @dataclass
@@ -119,10 +136,6 @@ def _add_loggers(builder: DiagramBuilder, logged: dict) -> dict[str, tuple[Vecto
     return loggers
 
 
-def _identified_model(choice: str) -> IdentifiedModel:
-    return load_identified_model(model_file_of(choice))
-
-
 @dataclass
 class NominalPneumatic:
     """What a controller may know of the pneumatic plant: the nominal head's parameters and their
@@ -132,7 +145,7 @@ class NominalPneumatic:
     allocation: SplitRangeAllocation
 
     @classmethod
-    def of(cls, config: SimulationConfig) -> "NominalPneumatic":
+    def of(cls, config: Scenario) -> "NominalPneumatic":
         p = config.pneumatic
         nominal = dataclasses.replace(p, head_mass_kg=p.nominal_head_mass_kg)
         allocation = pneumatic_allocation(nominal, config.offset_free_lqg.outlet_full_open_below_m)
@@ -144,22 +157,22 @@ def _paper_valve_currents_a(paper) -> tuple[float, float]:
     return ma_to_a(paper.valve_starting_current_ma), ma_to_a(paper.valve_saturation_current_ma)
 
 
-def inlet_current_range_a(config: SimulationConfig) -> tuple[float, float]:
+def inlet_current_range_a(config: Scenario) -> tuple[float, float]:
     """The (starting, saturation) currents of the inlet valve of ``config.plant`` (A): the
     pneumatic plant's own valve, or the paper's valve in front of a linear model."""
-    if config.plant == "pneumatic":
+    if isinstance(config.plant, PneumaticPlant):
         inlet = config.pneumatic.inlet
         return inlet.starting_current_a, inlet.saturation_current_a
     return _paper_valve_currents_a(config.paper)
 
 
 def add_plant(
-    builder: DiagramBuilder, config: SimulationConfig, nominal: "NominalPneumatic | None"
+    builder: DiagramBuilder, config: Scenario, nominal: "NominalPneumatic | None"
 ) -> AddedPlant:
     """Adds ``config.plant``, at rest at ``config.start_lift_m`` for the pneumatic plant (whose
     starting currents come from ``nominal``'s allocation) or at the model's operating point."""
     paper = config.paper
-    if config.plant == "pneumatic":
+    if isinstance(config.plant, PneumaticPlant):
         p = config.pneumatic
         start_inlet_a, start_outlet_a = nominal.allocation.currents(config.start_lift_m)
         state = equilibrium_state(p, float(start_inlet_a), float(start_outlet_a))
@@ -170,17 +183,18 @@ def add_plant(
             head_height=plant.outputs["head_height_m"],
             start_height_m=p.rest_head_height_m + state[LIFT],
         )
-    if config.plant == "paper":
+    if isinstance(config.plant, PaperPlant):
         # The model was identified on the fused distance in the Kinect v2 frame (Sec. III-B).
-        model, camera_height_m = paper_identified_model(paper), config.kinect_v2.mount_height_m
+        camera_height_m = config.cameras[config.plant.camera].mount_height_m
+        model = paper_identified_model(paper)
     else:
-        model, camera_height_m = _identified_model(config.plant), None
+        model, camera_height_m = load_identified_model(config.plant.model_file), None
     plant = add_linear_model_plant(
         builder,
         model,
         camera_height_m,
         *_paper_valve_currents_a(paper),
-        name=f"{config.plant.split(':')[0]}_plant",
+        name=f"{kind_name(config.plant)}_plant",
     )
     return AddedPlant(
         inlet=plant.inputs["inlet_valve_current_a"],
@@ -192,7 +206,7 @@ def add_plant(
     )
 
 
-def pneumatic_offset_free_design(config: SimulationConfig, nominal: "NominalPneumatic"):
+def pneumatic_offset_free_design(config: Scenario, nominal: "NominalPneumatic"):
     """The offset-free LQG for the pneumatic plant: designed on the nominal head's plant
     linearised at the configured operating lift, for the configured cameras' measurement delay
     (the model's output is the head height itself)."""
@@ -207,17 +221,19 @@ def pneumatic_offset_free_design(config: SimulationConfig, nominal: "NominalPneu
 
 
 def _offset_free_design(
-    config: SimulationConfig, plant: AddedPlant, nominal: "NominalPneumatic | None"
+    config: Scenario, controller: OffsetFreeLqg, plant: AddedPlant, nominal
 ):
     """(design, allocation) of the offset-free LQG for ``plant``: on the pneumatic plant's
-    linearisation, or on the identified model ``config.controller`` (or the plant's) names."""
+    linearisation, or on the identified model ``controller`` (or the plant) names."""
     settings = config.offset_free_lqg
-    if config.controller == "offset-free-lqg" and config.plant == "pneumatic":
+    designed_on_plant = not controller.design_model_file
+    if designed_on_plant and isinstance(config.plant, PneumaticPlant):
         return pneumatic_offset_free_design(config, nominal), nominal.allocation
-    if config.controller == "offset-free-lqg":
+    if designed_on_plant:
         identified, camera_height_m = plant.model, plant.camera_height_m
     else:
-        identified, camera_height_m = _identified_model(config.controller), None
+        identified = load_identified_model(controller.design_model_file)
+        camera_height_m = None
     model = design_model_from_identified(identified, camera_height_m)
     try:
         # An identified model's output is the fused estimate as logged at a tick, after that
@@ -227,7 +243,7 @@ def _offset_free_design(
         )
         design = design_offset_free_lqg(model, weights, measurement_delay_samples=1)
     except ValueError as error:
-        raise ConfigError(f"controller = {config.controller!r}: {error}") from None
+        raise ConfigError(f"controller {shorthand(controller)!r}: {error}") from None
     allocation = current_split_allocation(config.pneumatic.inlet, config.pneumatic.outlet)
     return design, allocation
 
@@ -243,15 +259,15 @@ class SensingChain:
 
 
 def add_sensing_chain(
-    builder: DiagramBuilder, config: SimulationConfig, head_height: OutputPort, start_height_m
+    builder: DiagramBuilder, config: Scenario, head_height: OutputPort, start_height_m
 ) -> SensingChain:
-    """Adds both cameras watching ``head_height``, a local Kalman filter on each (starting at
+    """Adds every camera watching ``head_height``, a local Kalman filter on each (starting at
     ``start_height_m``) and the track-to-track fusion of their tracks."""
     variances = paper_filter_variances_si(config.paper)
-    sensor_names = list(config.sensors())
+    sensor_names = list(config.cameras)
     filters = {}
     sensors = {}
-    for name, sensor_config in config.sensors().items():
+    for name, sensor_config in config.cameras.items():
         sensor = add_depth_sensor(builder, name, sensor_config)
         local_filter = add_local_kalman_filter(
             builder,
@@ -259,7 +275,7 @@ def add_sensing_chain(
             camera_height_m=sensor_config.mount_height_m,
             frame_period_s=1.0 / sensor_config.frame_rate_hz,
             acceleration_variance_m2_s4=variances["acceleration_variance_m2_s4"],
-            measurement_variance_m2=variances[name],
+            measurement_variance_m2=variances[sensor_config.model],
             initial_height_m=start_height_m,
             valid_range_m=(sensor_config.min_range_m, sensor_config.max_range_m),
             config=config.local_filter,
@@ -277,7 +293,7 @@ def add_sensing_chain(
 
 def export_and_log(
     builder: DiagramBuilder,
-    config: SimulationConfig,
+    config: Scenario,
     sensing: SensingChain,
     loop_outputs: dict[str, OutputPort],
     command_period_s: float,
@@ -299,7 +315,7 @@ def export_and_log(
     if not record:
         return {}
     frame_periods_s = {
-        f"{name}.{port}": 1.0 / config.sensors()[name].frame_rate_hz
+        f"{name}.{port}": 1.0 / config.cameras[name].frame_rate_hz
         for name in sensing.sensor_names
         for port in ("distance_m", "valid")
     }
@@ -310,24 +326,24 @@ def export_and_log(
     return _add_loggers(builder, logged)
 
 
-def measurement_delay_samples(config: SimulationConfig) -> int:
+def measurement_delay_samples(config: Scenario) -> int:
     """Controller ticks between the head's height and the fused estimate the controller reads:
     the slowest camera's latency (whole frames), plus one tick because the controller reads the
     local filters' state as it was before its own tick (fusion passes it straight through)."""
     period_s = config.offset_free_lqg.sample_period_s
     latency_s = max(
-        latency_frames(sensor) / sensor.frame_rate_hz for sensor in config.sensors().values()
+        latency_frames(camera) / camera.frame_rate_hz for camera in config.cameras.values()
     )
     return round(latency_s / period_s) + 1
 
 
 def build_closed_loop(
-    config: SimulationConfig, record: bool = True, nominal: "NominalPneumatic | None" = None
+    config: Scenario, record: bool = True, nominal: "NominalPneumatic | None" = None
 ) -> ClosedLoop:
     """Wires the whole chain for ``config``: its plant, cameras, filters, fusion and controller.
 
     Args:
-        config: a validated SimulationConfig.
+        config: a validated Scenario.
         record: add VectorLogSinks for every recorded signal (the core-speed benchmark omits them).
         nominal: ``NominalPneumatic.of(config)`` when the caller has it already (a Monte Carlo
             over head masses shares one); built here otherwise.
@@ -341,7 +357,7 @@ def build_closed_loop(
     builder = DiagramBuilder()
     # Components are added flat (add_*), not as nested Diagrams: nesting nearly doubles the cost of
     # a step (benchmarks/system_overhead.py), and the loop must run >= 1000x faster than real time.
-    if nominal is None and config.plant == "pneumatic":
+    if nominal is None and isinstance(config.plant, PneumaticPlant):
         nominal = NominalPneumatic.of(config)
     plant = add_plant(builder, config, nominal)
     start_height_m = plant.start_height_m
@@ -350,11 +366,11 @@ def build_closed_loop(
         TrajectorySource(make_reference_trajectory(config.reference, start_height_m)),
     )
 
-    if config.controller == "paper-lqg":
+    if isinstance(config.controller, PaperLqg):
         model, design = paper_lqg(paper)
         valve_currents_a = _paper_valve_currents_a(paper)
         saturation_current_a = valve_currents_a[1]
-        camera_height_m = config.kinect_v2.mount_height_m
+        camera_height_m = config.cameras[config.controller.camera].mount_height_m
         controller = add_paper_lqg(
             builder, model, design, camera_height_m, valve_currents_a, "paper_lqg"
         )
@@ -369,14 +385,14 @@ def build_closed_loop(
             "outlet_valve_shut", ConstantVectorSource([0.0])
         ).get_output_port()
     else:
-        design, allocation = _offset_free_design(config, plant, nominal)
+        design, allocation = _offset_free_design(config, config.controller, plant, nominal)
         model = design.model
         controller = add_offset_free_lqg(
             builder, design, allocation, start_height_m, name="offset_free_lqg"
         )
         inlet_command = controller.outputs["inlet_valve_current_a"]
         outlet_command = controller.outputs["outlet_valve_current_a"]
-    controller_name = config.controller.split(":")[0]
+    controller_name = kind_name(config.controller)
     return assemble_loop(
         builder,
         config,
@@ -390,7 +406,7 @@ def build_closed_loop(
             controller,
         ),
         record,
-        f"{config.plant.split(':')[0]}_{controller_name}_closed_loop".replace("-", "_"),
+        f"{kind_name(config.plant)}_{controller_name}_closed_loop".replace("-", "_"),
         model=model,
         design=design,
     )
@@ -419,7 +435,7 @@ class LoopDrive:
 
 def assemble_loop(
     builder: DiagramBuilder,
-    config: SimulationConfig,
+    config: Scenario,
     plant: AddedPlant,
     drive: LoopDrive,
     record: bool,
@@ -457,7 +473,7 @@ def assemble_loop(
     diagram.set_name(diagram_name)
     return ClosedLoop(
         diagram=diagram,
-        plant=config.plant.split(":")[0],
+        plant=kind_name(config.plant),
         controller=drive.name,
         model=model,
         design=design,
@@ -465,3 +481,19 @@ def assemble_loop(
         sensor_names=sensing.sensor_names,
         loggers=loggers,
     )
+
+
+def logged_signals(
+    closed_loop: ClosedLoop, context, taken: dict | None = None
+) -> dict[str, Signal]:
+    """Every logged output of ``closed_loop`` in ``context``, by its exported name; with ``taken``
+    (log sink -> samples already taken, updated here), only the samples logged since."""
+    taken = {} if taken is None else taken
+    first = {sink: taken.get(sink, 0) for sink, _ in closed_loop.loggers.values()}
+    signals = {}
+    for name, (sink, rows) in closed_loop.loggers.items():
+        log = sink.FindLog(context)
+        start = first[sink]
+        signals[name] = Signal(log.sample_times()[start:].copy(), log.data()[rows, start:].copy())
+        taken[sink] = log.num_samples()
+    return signals

@@ -1,5 +1,17 @@
-"""The configuration of a closed-loop simulation: dataclasses, loaded from the shipped assets and an
-optional user file with ``yaml_load_typed``, then checked before anything runs."""
+"""A scenario: everything one run of the head positioner needs, as typed dataclasses.
+
+Loaded from the shipped assets and an optional user file with ``yaml_load_typed``, then checked
+once, before anything runs. The plant, the controller and each camera are dataclass variants chosen
+in YAML by tag, as pydrake's ``yaml_load_typed`` reads ``Union`` fields::
+
+    plant: !IdentifiedPlant {model_file: model_pem_order2.yaml}
+    controller: !OffsetFreeLqg {}
+    cameras:
+      kinect_v3: !KinectV2Config {mount_height_m: 0.95, ...}
+
+The command line's shorthands (``--plant identified:MODEL.yaml``) build the same variants
+(``plant_from_shorthand``), and ``shorthand`` writes a variant back as its flag.
+"""
 
 import math
 from dataclasses import dataclass, field
@@ -25,8 +37,121 @@ from maskless.systems.sensing.depth_sensor import (
 )
 from maskless.systems.sensing.local_kalman_filter import LocalFilterConfig
 
-PLANTS = ("pneumatic", "paper", "identified:MODEL.yaml")
-CONTROLLERS = ("offset-free-lqg", "offset-free-lqg:MODEL.yaml", "paper-lqg")
+
+@dataclass
+class PneumaticPlant:
+    """The first-principles robot ("the real robot"); its constants are the scenario's
+    ``pneumatic`` section."""
+
+
+@dataclass
+class PaperPlant:
+    """The paper's identified model (Eq. 25-26) behind the paper's valve map.
+
+    Attributes:
+        camera: the camera whose distance the model's output is: the paper identified it on the
+            fused distance in the Kinect v2 frame (Sec. III-B).
+    """
+
+    camera: str = "kinect_v2"
+
+
+@dataclass
+class IdentifiedPlant:
+    """A model `maskless identify` wrote, whose output is the head height, behind the paper's
+    valve map.
+
+    Attributes:
+        model_file: the model's YAML file.
+    """
+
+    model_file: str = ""
+
+
+@dataclass
+class OffsetFreeLqg:
+    """The offset-free LQG (settings: the scenario's ``offset_free_lqg`` section).
+
+    Attributes:
+        design_model_file: an identified model (a `maskless identify` file) to design on; empty to
+            design on the plant itself (the nominal pneumatic plant's linearisation, or the linear
+            plant's own model).
+    """
+
+    design_model_file: str = ""
+
+
+@dataclass
+class PaperLqg:
+    """The paper's LQG (Eq. 27-34), which drives the inlet valve only.
+
+    Attributes:
+        camera: the camera whose frame the paper's model (and so its estimator) measures in.
+    """
+
+    camera: str = "kinect_v2"
+
+
+Plant = PneumaticPlant | PaperPlant | IdentifiedPlant
+Controller = OffsetFreeLqg | PaperLqg
+Camera = KinectV1Config | KinectV2Config
+
+# The command line's shorthands, and the variant each builds; "NAME:FILE" takes a model file.
+PLANT_SHORTHANDS = ("pneumatic", "paper", "identified:MODEL.yaml")
+CONTROLLER_SHORTHANDS = ("offset-free-lqg", "offset-free-lqg:MODEL.yaml", "paper-lqg")
+
+
+def plant_from_shorthand(text: str) -> Plant:
+    """The plant a ``--plant`` value names.
+
+    Raises:
+        ConfigError: naming the value and the shorthands there are.
+    """
+    name, separator, path = text.partition(":")
+    if text == "pneumatic":
+        return PneumaticPlant()
+    if text == "paper":
+        return PaperPlant()
+    if name == "identified" and separator and path:
+        return IdentifiedPlant(model_file=path)
+    raise ConfigError(f"--plant {text!r}: expected one of {', '.join(PLANT_SHORTHANDS)}")
+
+
+def controller_from_shorthand(text: str) -> Controller:
+    """The controller a ``--controller`` value names.
+
+    Raises:
+        ConfigError: naming the value and the shorthands there are.
+    """
+    name, separator, path = text.partition(":")
+    if text == "paper-lqg":
+        return PaperLqg()
+    if name == "offset-free-lqg" and (not separator or path):
+        return OffsetFreeLqg(design_model_file=path)
+    raise ConfigError(
+        f"--controller {text!r}: expected one of {', '.join(CONTROLLER_SHORTHANDS)}"
+    )
+
+
+def shorthand(choice: Plant | Controller) -> str:
+    """The command-line shorthand of a plant or controller (inverse of ``*_from_shorthand``)."""
+    match choice:
+        case PneumaticPlant():
+            return "pneumatic"
+        case PaperPlant():
+            return "paper"
+        case IdentifiedPlant(model_file=path):
+            return f"identified:{path}"
+        case OffsetFreeLqg(design_model_file=path):
+            return f"offset-free-lqg:{path}" if path else "offset-free-lqg"
+        case PaperLqg():
+            return "paper-lqg"
+    raise TypeError(f"not a plant or controller variant: {choice!r}")
+
+
+def kind_name(choice: Plant | Controller) -> str:
+    """A variant's name without its model file: "pneumatic", "identified", "offset-free-lqg"."""
+    return shorthand(choice).partition(":")[0]
 
 
 @dataclass
@@ -81,87 +206,93 @@ class OffsetFreeLqgConfig:
 
 
 @dataclass
-class SimulationConfig:
-    """Everything a closed-loop run needs; defaults from assets/simulation.yaml, pneumatic.yaml
-    and paper.yaml.
+class Scenario:
+    """Everything a run needs; defaults from assets/simulation.yaml, pneumatic.yaml and paper.yaml.
 
     Attributes (besides the sections):
-        plant: "pneumatic", "paper" or "identified:MODEL.yaml" (a `maskless identify` model file
-            whose output is the head height).
-        controller: "offset-free-lqg" (designed on the plant's linearisation or model),
-            "offset-free-lqg:MODEL.yaml" (designed on an identified model) or "paper-lqg".
+        random_seed: seeds every noise source; the same seed gives the same run, bit for bit.
+        duration_s: simulated seconds.
+        plant: which plant (a tagged variant: ``!PneumaticPlant``, ``!PaperPlant``,
+            ``!IdentifiedPlant``).
+        controller: which controller (``!OffsetFreeLqg``, ``!PaperLqg``).
+        cameras: camera name -> its model (``!KinectV1Config``, ``!KinectV2Config``); each gets
+            its own local Kalman filter, and the fusion fuses them all.
         start_lift_m: where the pneumatic plant's head starts, at rest (m of lift).
     """
 
     random_seed: int = 0
     duration_s: float = UNSET
-    plant: str = "pneumatic"
-    controller: str = "offset-free-lqg"
+    plant: Plant = field(default_factory=PneumaticPlant)
+    controller: Controller = field(default_factory=OffsetFreeLqg)
     start_lift_m: float = UNSET
     reference: ReferenceConfig = field(default_factory=ReferenceConfig)
-    kinect_v1: KinectV1Config = field(default_factory=KinectV1Config)
-    kinect_v2: KinectV2Config = field(default_factory=KinectV2Config)
+    cameras: dict[str, Camera] = field(default_factory=dict)
     local_filter: LocalFilterConfig = field(default_factory=LocalFilterConfig)
     metrics: MetricsConfig = field(default_factory=MetricsConfig)
     paper: PaperParameters = field(default_factory=PaperParameters)
     pneumatic: PneumaticParameters = field(default_factory=PneumaticParameters)
     offset_free_lqg: OffsetFreeLqgConfig = field(default_factory=OffsetFreeLqgConfig)
 
-    def sensors(self) -> dict:
-        """The camera configs by name, in a fixed order."""
-        return {"kinect_v1": self.kinect_v1, "kinect_v2": self.kinect_v2}
 
-
-def default_config() -> SimulationConfig:
-    """The shipped defaults: assets/simulation.yaml over the paper's parameters."""
-    base = SimulationConfig(paper=load_paper_parameters(), pneumatic=load_pneumatic_parameters())
-    return load_config(SimulationConfig, asset_path("simulation.yaml"), defaults=base)
-
-
-def load_simulation_config(path: str | Path | None = None) -> SimulationConfig:
-    """The shipped defaults, overridden by the YAML file at ``path`` when given, then validated.
-
-    Raises:
-        ConfigError: an unknown or mistyped field, or a value out of range; the message names the
-            file (or the field) and what was expected.
-    """
-    return load_config_with_overrides(path, {})
+def default_scenario() -> Scenario:
+    """The shipped defaults, unvalidated: assets/simulation.yaml over the paper's parameters."""
+    base = Scenario(paper=load_paper_parameters(), pneumatic=load_pneumatic_parameters())
+    return load_config(Scenario, asset_path("simulation.yaml"), defaults=base)
 
 
 # Drake's RandomGenerator takes a 32-bit seed; larger ones would wrap onto other seeds silently.
 MAX_RANDOM_SEED = 2**32 - 1
 
 
-def load_config_with_overrides(
-    path: str | Path | None, overrides: dict[str, tuple[str, object]]
-) -> SimulationConfig:
-    """``load_simulation_config(path)`` with fields set from the command line, then validated.
+def load_scenario(path: str | Path | None = None, **overrides) -> Scenario:
+    """The shipped defaults, overridden by the YAML file at ``path`` and then by ``overrides``,
+    validated once.
 
     Args:
-        path: the --config file, or None for the shipped defaults.
-        overrides: flag -> (field, value); a value of None leaves the field as configured.
+        path: a scenario YAML file, or None for the shipped defaults.
+        **overrides: top-level fields to set after the file (``duration_s=30``,
+            ``plant=IdentifiedPlant("m.yaml")``); None leaves a field as configured.
 
     Raises:
-        ConfigError: naming the file, or the flags, and the field that is out of range.
+        ConfigError: an unknown or mistyped field, or a value out of range; the message names the
+            file (or the overridden fields) and the field, and what was expected.
+        MissingFileError: ``path`` does not exist.
     """
-    config = default_config()
+    return scenario_with_overrides(path, overrides, labels={})
+
+
+def scenario_with_overrides(
+    path: str | Path | None, overrides: dict[str, object], labels: dict[str, str]
+) -> Scenario:
+    """``load_scenario`` for a caller whose overrides have names of their own.
+
+    Args:
+        path: a scenario YAML file, or None for the shipped defaults.
+        overrides: field -> value; None leaves the field as configured.
+        labels: field -> what the user called it (a command-line flag), for messages.
+    """
+    scenario = default_scenario()
     if path is not None:
-        config = load_config(SimulationConfig, path, defaults=config)
-    for field_name, value in overrides.values():
-        if value is not None:
-            setattr(config, field_name, value)
-    # Validated once, after the flags: a flag may mend what the file set.
+        scenario = load_config(Scenario, path, defaults=scenario)
+    given = {name: value for name, value in overrides.items() if value is not None}
+    known = set(Scenario.__dataclass_fields__)
+    for name, value in given.items():
+        if name not in known:
+            raise ConfigError(f"unknown scenario field {name!r}; known: {', '.join(sorted(known))}")
+        setattr(scenario, name, value)
+    # Validated once, after the overrides: an override may mend what the file set.
     try:
-        validate_simulation_config(config)
+        validate_scenario(scenario)
     except ConfigError as error:
         sources = [str(path)] if path is not None else []
-        if overrides:
-            sources.append(f"command line ({'/'.join(overrides)})")
+        if given:
+            names = ", ".join(labels.get(name, name) for name in given)
+            sources.append(f"command line ({names})" if labels else f"overrides ({names})")
         raise ConfigError(f"{' with '.join(sources) or 'shipped defaults'}: {error}") from error
-    return config
+    return scenario
 
 
-def validate_simulation_config(config: SimulationConfig) -> None:
+def validate_scenario(config: Scenario) -> None:
     """Raises ConfigError naming the first field that is unset or out of range."""
     unset = find_unset_fields(config)
     if unset:
@@ -196,8 +327,7 @@ def validate_simulation_config(config: SimulationConfig) -> None:
         times,
         "positive, increasing times",
     )
-    for name, sensor in config.sensors().items():
-        validate_sensor_config(name, sensor)
+    _validate_cameras(config)
     for field_name in ("initial_position_std_m", "initial_velocity_std_m_s"):
         value = getattr(config.local_filter, field_name)
         require(value > 0, f"local_filter.{field_name}", value, "a positive std")
@@ -208,8 +338,7 @@ def validate_simulation_config(config: SimulationConfig) -> None:
         require(value >= 0, f"metrics.{field_name}", value, ">= 0")
     validate_paper_parameters(config.paper)
     validate_pneumatic_parameters(config.pneumatic)
-    _validate_choice("plant", config.plant, PLANTS)
-    _validate_choice("controller", config.controller, CONTROLLERS)
+    _validate_choices(config)
     controller = config.offset_free_lqg
     require(
         controller.sample_period_s > 0,
@@ -254,18 +383,33 @@ def validate_simulation_config(config: SimulationConfig) -> None:
         )
 
 
-def model_file_of(choice: str) -> Path | None:
-    """The model file named by a plant or controller choice ("name:FILE"), if any."""
-    _, separator, path = choice.partition(":")
-    return Path(path) if separator else None
+def _validate_cameras(config: Scenario) -> None:
+    if not config.cameras:
+        raise ConfigError("cameras: expected at least one camera")
+    for name, camera in config.cameras.items():
+        # A camera's name is one segment of its recording topics and of its diagram ports.
+        if not name.isidentifier():
+            raise ConfigError(
+                f"cameras.{name}: expected a name of letters, digits and underscores"
+            )
+        validate_sensor_config(f"cameras.{name}", camera)
 
 
-def _validate_choice(field_name: str, value: str, allowed: tuple[str, ...]) -> None:
-    """Refuses a choice that is not one of ``allowed`` ("name:MODEL.yaml" takes any file that
-    exists)."""
-    name, separator, path = value.partition(":")
-    forms = {choice.partition(":")[0] + (":" if ":" in choice else "") for choice in allowed}
-    if name + separator not in forms or (separator and not path):
-        raise ConfigError(f"{field_name} = {value!r}: expected one of {', '.join(allowed)}")
-    if separator and not Path(path).is_file():
-        raise ConfigError(f"{field_name} = {value!r}: model file not found: {path}")
+def _validate_choices(config: Scenario) -> None:
+    """Refuses a model file that does not exist and a camera the paper's model cannot use."""
+    files = {
+        "plant.model_file": getattr(config.plant, "model_file", None),
+        "controller.design_model_file": getattr(config.controller, "design_model_file", None),
+    }
+    if isinstance(config.plant, IdentifiedPlant) and not config.plant.model_file:
+        raise ConfigError("plant.model_file: expected the model file of the identified plant")
+    for field_name, path in files.items():
+        if path and not Path(path).is_file():
+            raise ConfigError(f"{field_name} = {path!r}: model file not found")
+    for field_name, choice in (("plant", config.plant), ("controller", config.controller)):
+        camera = getattr(choice, "camera", None)
+        if camera is not None and camera not in config.cameras:
+            raise ConfigError(
+                f"{field_name}.camera = {camera!r}: expected one of the cameras "
+                f"({', '.join(config.cameras)})"
+            )

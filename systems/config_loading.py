@@ -16,7 +16,7 @@ from pathlib import Path
 import yaml
 from pydrake.common.yaml import yaml_load_typed
 
-from maskless.errors import ConfigError
+from maskless.errors import ConfigError, MissingFileError
 
 # A float field whose value must come from a YAML file (the shipped assets), so every published
 # number is written once, in assets/, and never repeated as a Python default.
@@ -31,22 +31,64 @@ def asset_path(name: str) -> Path:
     return path
 
 
-def _dataclass_of(annotation):
-    """The dataclass type inside an annotation (plain or Optional[...]), else None."""
+@dataclasses.dataclass(frozen=True)
+class _Tagged:
+    """A YAML node written with a type tag (``!IdentifiedPlant {...}``): the tag picks one
+    alternative of a ``Union`` field, as in ``yaml_load_typed``."""
+
+    tag: str
+    value: object
+
+
+class _TagKeepingLoader(yaml.SafeLoader):
+    """SafeLoader that keeps ``!Tag`` nodes instead of refusing them."""
+
+
+def _construct_tagged(loader, tag_suffix, node):
+    if isinstance(node, yaml.MappingNode):
+        value = loader.construct_mapping(node, deep=True)
+    elif isinstance(node, yaml.SequenceNode):
+        value = loader.construct_sequence(node, deep=True)
+    else:
+        value = loader.construct_scalar(node)
+    return _Tagged(tag_suffix, value)
+
+
+_TagKeepingLoader.add_multi_constructor("!", _construct_tagged)
+
+
+class _TagWritingDumper(yaml.SafeDumper):
+    """SafeDumper that writes ``_Tagged`` nodes back with their tag."""
+
+
+def _represent_tagged(dumper, tagged: _Tagged):
+    if isinstance(tagged.value, dict):
+        return dumper.represent_mapping(f"!{tagged.tag}", tagged.value)
+    return dumper.represent_scalar(f"!{tagged.tag}", str(tagged.value))
+
+
+_TagWritingDumper.add_representer(_Tagged, _represent_tagged)
+
+
+def _dataclass_alternatives(annotation) -> tuple[type, ...]:
+    """The dataclasses an annotation allows: one for a plain or Optional dataclass field, several
+    for a Union of dataclasses (chosen in YAML by tag), none for anything else."""
     if dataclasses.is_dataclass(annotation):
-        return annotation
-    for arg in typing.get_args(annotation):
-        if dataclasses.is_dataclass(arg):
-            return arg
-    return None
+        return (annotation,)
+    return tuple(arg for arg in typing.get_args(annotation) if dataclasses.is_dataclass(arg))
 
 
-def _check_known_fields(tree, schema, filename: str, prefix: str = "") -> None:
+def _checked_tree(tree, schema, default, filename: str, prefix: str = ""):
+    """``tree`` checked against ``schema`` (unknown fields, wrong types, unknown tags), with the
+    tag of every ``Union`` value made explicit. An untagged value keeps the type of the default it
+    overrides: ``yaml_load_typed`` would read it as the Union's first alternative and so quietly
+    turn, say, a Kinect v2 entry into a Kinect v1."""
     if not isinstance(tree, dict):
         where = f"field '{prefix.rstrip('.')}'" if prefix else "the top level"
         raise ConfigError(f"{filename}: {where} must be a mapping, got {type(tree).__name__}")
     hints = typing.get_type_hints(schema)
     known = {f.name for f in dataclasses.fields(schema)}
+    checked = {}
     for key, value in tree.items():
         if key not in known:
             close = difflib.get_close_matches(str(key), sorted(known), n=1)
@@ -55,11 +97,52 @@ def _check_known_fields(tree, schema, filename: str, prefix: str = "") -> None:
                 f"{filename}: unknown field '{prefix}{key}'{hint}; "
                 f"known fields here: {', '.join(sorted(known))}"
             )
-        inner = _dataclass_of(hints[key])
-        if inner is not None and value is not None:
-            _check_known_fields(value, inner, filename, f"{prefix}{key}.")
-        else:
-            _check_scalar_type(value, hints[key], filename, f"{prefix}{key}")
+        field_default = getattr(default, key, None)
+        checked[key] = _checked_value(value, hints[key], field_default, filename, f"{prefix}{key}")
+    return checked
+
+
+def _checked_value(value, annotation, default, filename: str, dotted_name: str):
+    """One field's YAML value checked against its annotation (see ``_checked_tree``)."""
+    if typing.get_origin(annotation) is dict and isinstance(value, dict):
+        _, value_type = typing.get_args(annotation)
+        defaults = default if isinstance(default, dict) else {}
+        return {
+            key: _checked_value(
+                item, value_type, defaults.get(key), filename, f"{dotted_name}.{key}"
+            )
+            for key, item in value.items()
+        }
+    alternatives = _dataclass_alternatives(annotation)
+    if not alternatives or value is None:
+        if isinstance(value, _Tagged):
+            raise ConfigError(
+                f"{filename}: field '{dotted_name}' has the tag !{value.tag}, but takes no tag"
+            )
+        _check_scalar_type(value, annotation, filename, dotted_name)
+        return value
+    if len(alternatives) == 1 and not isinstance(value, _Tagged):
+        return _checked_tree(value, alternatives[0], default, filename, f"{dotted_name}.")
+    by_tag = {alternative.__name__: alternative for alternative in alternatives}
+    tags = ", ".join(f"!{name}" for name in by_tag)
+    if len(alternatives) > 1 and not isinstance(value, _Tagged | dict):
+        raise ConfigError(
+            f"{filename}: field '{dotted_name}' = {value!r}: expected a mapping tagged with one "
+            f"of {tags}"
+        )
+    if isinstance(value, _Tagged):
+        tag, value = value.tag, value.value
+        if tag not in by_tag:
+            raise ConfigError(
+                f"{filename}: field '{dotted_name}' has the tag !{tag}; expected one of {tags}"
+            )
+    else:
+        tag = type(default).__name__ if type(default) in alternatives else alternatives[0].__name__
+    if value is None:
+        value = {}
+    same_type_default = default if type(default) is by_tag[tag] else None
+    tree = _checked_tree(value, by_tag[tag], same_type_default, filename, f"{dotted_name}.")
+    return _Tagged(tag, tree) if len(alternatives) > 1 else tree
 
 
 _EXPECTED_SCALARS = {
@@ -115,19 +198,20 @@ def load_config(schema, filename: str | Path, defaults=None):
     """
     path = Path(filename)
     if not path.is_file():
-        raise FileNotFoundError(f"config file not found: {path}")
+        raise MissingFileError(f"config file not found: {path}")
     try:
-        tree = yaml.safe_load(path.read_text())
+        tree = yaml.load(path.read_text(), Loader=_TagKeepingLoader)
     except yaml.YAMLError as error:
         raise ConfigError(f"{path}: not valid YAML: {error}") from error
     if tree is None:
         tree = {}
-    _check_known_fields(tree, schema, str(path))
+    checked = _checked_tree(tree, schema, defaults, str(path))
+    data = yaml.dump(checked, Dumper=_TagWritingDumper)
     try:
         if defaults is None:
-            config = yaml_load_typed(schema=schema, data=yaml.safe_dump(tree))
+            config = yaml_load_typed(schema=schema, data=data)
         else:
-            config = yaml_load_typed(schema=schema, data=yaml.safe_dump(tree), defaults=defaults)
+            config = yaml_load_typed(schema=schema, data=data, defaults=defaults)
     except (RuntimeError, ValueError, TypeError) as error:
         raise ConfigError(f"{path}: {error}") from error
     if defaults is None:

@@ -2,8 +2,14 @@
 
 import pytest
 
-from maskless.diagrams.commands.simulate import run_closed_loop
-from maskless.diagrams.scenario import load_simulation_config
+from maskless.diagrams.scenario import (
+    PaperLqg,
+    PaperPlant,
+    controller_from_shorthand,
+    load_scenario,
+    plant_from_shorthand,
+)
+from maskless.diagrams.simulation import simulate
 
 SHORT_RUN_S = 20.0
 
@@ -11,22 +17,23 @@ SHORT_RUN_S = 20.0
 @pytest.fixture
 def config():
     """A fresh copy of the shipped defaults (tests may change it)."""
-    return load_simulation_config()
+    return load_scenario()
 
 
 @pytest.fixture
 def paper_config(config):
     """The shipped defaults with the seed paper's plant and controller."""
-    config.plant, config.controller = "paper", "paper-lqg"
+    config.plant, config.controller = PaperPlant(), PaperLqg()
     return config
 
 
 def _short_run(plant: str, controller: str):
-    config = load_simulation_config()
-    config.plant, config.controller = plant, controller
+    config = load_scenario()
+    config.plant = plant_from_shorthand(plant)
+    config.controller = controller_from_shorthand(controller)
     config.duration_s = SHORT_RUN_S
     config.reference.step_times_s = [2.0]
-    return run_closed_loop(config)
+    return simulate(config)
 
 
 @pytest.fixture(scope="session")

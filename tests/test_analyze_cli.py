@@ -7,8 +7,8 @@ from maskless.analysis.operating_range import default_operating_ranges
 from maskless.analysis.stability.loop_robustness import analyze_paper_loop, robustness_cases
 from maskless.diagrams.cli import build_parser, main
 from maskless.diagrams.closed_loop import build_closed_loop
-from maskless.diagrams.commands.analyze import offset_free_setup
-from maskless.diagrams.scenario import load_simulation_config
+from maskless.diagrams.plant_analysis import offset_free_setup
+from maskless.diagrams.scenario import load_scenario
 from maskless.systems.control.paper_lqg import paper_lqg
 
 
@@ -22,7 +22,7 @@ def test_operating_range_json_matches_the_pure_functions(tmp_path, capsys):
     report = run_json(capsys, "operating-range", "--points", "5", "--out", str(out))
     assert json.loads((out / "operating_range.json").read_text()) == report
     assert (out / "operating_range.png").stat().st_size > 10_000
-    ranges = default_operating_ranges(load_simulation_config().pneumatic, 5)
+    ranges = default_operating_ranges(load_scenario().pneumatic, 5)
     for valve, sweep in ranges.items():
         entry = report["valves"][valve]
         rows = entry["rows"]
@@ -53,7 +53,7 @@ def test_stability_json_matches_the_pure_functions(tmp_path, capsys):
     for name in ("stability_paper_lqg", "stability_offset_free_lqg", "stability_margins"):
         assert (out / f"{name}.png").stat().st_size > 10_000
 
-    config = load_simulation_config()
+    config = load_scenario()
     model, design = paper_lqg(config.paper)
     paper = analyze_paper_loop(model, design)
     reported = report["paper_lqg"]
@@ -92,7 +92,7 @@ def test_stability_json_matches_the_pure_functions(tmp_path, capsys):
 
 
 def test_stability_analyses_the_controller_the_closed_loop_runs():
-    config = load_simulation_config()
+    config = load_scenario()
     _, _, design = offset_free_setup(config)
     running = build_closed_loop(config, record=False).design
     for name in ("K", "M", "augmented_A", "augmented_C"):

@@ -3,8 +3,12 @@ import json
 import pytest
 
 from maskless.diagrams.cli import main
-from maskless.diagrams.commands.simulate import recording_channels, run_closed_loop
-from maskless.diagrams.scenario import load_simulation_config
+from maskless.diagrams.scenario import (
+    controller_from_shorthand,
+    load_scenario,
+    plant_from_shorthand,
+)
+from maskless.diagrams.simulation import simulate
 from maskless.recording import read_recording, write_recording
 
 
@@ -39,7 +43,7 @@ def test_paper_flags_reproduce_the_paper_loop(tmp_path, capsys):
 def test_unknown_plant_and_missing_model_file_are_refused(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["simulate", "--plant", "pneumatik", "--out", str(out)]) == 2
-    assert "plant = 'pneumatik': expected one of pneumatic, paper" in capsys.readouterr().err
+    assert "--plant 'pneumatik': expected one of pneumatic, paper" in capsys.readouterr().err
     missing = tmp_path / "none.yaml"
     assert main(["simulate", "--controller", f"offset-free-lqg:{missing}", "--out", str(out)]) == 2
     assert "model file not found" in capsys.readouterr().err
@@ -48,11 +52,12 @@ def test_unknown_plant_and_missing_model_file_are_refused(tmp_path, capsys):
 
 def test_mistyped_config_is_refused_before_anything_runs(tmp_path, capsys):
     config = tmp_path / "bad.yaml"
-    config.write_text("kinect_v2:\n  frame_rate: 30\n")
+    config.write_text("cameras:\n  kinect_v2:\n    frame_rate: 30\n")
     out = tmp_path / "out"
     assert main(["simulate", "--config", str(config), "--out", str(out)]) == 2
     error = capsys.readouterr().err
-    assert "bad.yaml" in error and "kinect_v2.frame_rate" in error and "frame_rate_hz" in error
+    assert "bad.yaml" in error and "cameras.kinect_v2.frame_rate" in error
+    assert "frame_rate_hz" in error
     assert not out.exists()
 
 
@@ -72,8 +77,9 @@ def test_the_streamed_recording_is_the_one_shot_recording_of_the_same_run(
     # `maskless simulate` writes the recording in batches from a worker while the loop runs.
     args = ["--duration", "12", "--seed", "4", "--plant", plant, "--controller", controller]
     assert main(["simulate", *args, "--out", str(tmp_path)]) == 0
-    config = load_simulation_config()
+    config = load_scenario()
     config.duration_s, config.random_seed = 12.0, 4
-    config.plant, config.controller = plant, controller
-    write_recording(tmp_path / "whole.mcap", recording_channels(run_closed_loop(config)))
+    config.plant = plant_from_shorthand(plant)
+    config.controller = controller_from_shorthand(controller)
+    write_recording(tmp_path / "whole.mcap", simulate(config).recording_channels())
     assert (tmp_path / "run.mcap").read_bytes() == (tmp_path / "whole.mcap").read_bytes()

@@ -5,7 +5,8 @@ import pytest
 from mcap.reader import make_reader
 
 from maskless.diagrams.closed_loop import build_closed_loop
-from maskless.diagrams.commands.simulate import recording_channels, run_closed_loop
+from maskless.diagrams.scenario import controller_from_shorthand, plant_from_shorthand
+from maskless.diagrams.simulation import simulate
 from maskless.recording import read_recording, write_recording
 
 TOPICS = {
@@ -52,7 +53,8 @@ TOPICS = {
 def test_diagram_names_its_subsystems_and_exports_named_outputs(
     config, plant, controller, diagram_name, own_systems
 ):
-    config.plant, config.controller = plant, controller
+    config.plant = plant_from_shorthand(plant)
+    config.controller = controller_from_shorthand(controller)
     loop = build_closed_loop(config, record=False)
     diagram = loop.diagram
     assert diagram.get_name() == diagram_name
@@ -81,7 +83,7 @@ def test_diagram_names_its_subsystems_and_exports_named_outputs(
 
 def test_recording_read_back_with_the_mcap_reader(short_run, tmp_path):
     path = tmp_path / "run.mcap"
-    write_recording(path, recording_channels(short_run))
+    write_recording(path, short_run.recording_channels())
     with open(path, "rb") as stream:
         reader = make_reader(stream)
         summary = reader.get_summary()
@@ -95,15 +97,16 @@ def test_recording_read_back_with_the_mcap_reader(short_run, tmp_path):
     assert topics == TOPICS and encodings == {"jsonschema"}
     # The controller period (1/15 s) and the 15 Hz frames set the message counts.
     period_s = short_run.closed_loop.model.sample_period_s
-    assert counts["/plant/head_position"] == pytest.approx(short_run.duration_s / period_s, abs=2)
+    duration_s = short_run.scenario.duration_s
+    assert counts["/plant/head_position"] == pytest.approx(duration_s / period_s, abs=2)
     assert counts["/sensors/kinect_v1/measurement"] == pytest.approx(
-        short_run.duration_s * 15, abs=2
+        duration_s * 15, abs=2
     )
 
 
 def test_fused_messages_are_eq_10_of_the_local_estimates_with_the_same_stamp(short_run, tmp_path):
     path = tmp_path / "run.mcap"
-    write_recording(path, recording_channels(short_run))
+    write_recording(path, short_run.recording_channels())
     recording = read_recording(path)
     by_time = {
         topic: {t: payload for t, payload in recording.messages[topic]}
@@ -133,7 +136,7 @@ def run_bytes(config, seed, tmp_path):
     config.random_seed = seed
     tmp_path.mkdir(exist_ok=True)
     path = tmp_path / f"seed{seed}.mcap"
-    write_recording(path, recording_channels(run_closed_loop(config)))
+    write_recording(path, simulate(config).recording_channels())
     return path.read_bytes()
 
 
@@ -145,9 +148,9 @@ def test_same_seed_same_recording_bit_for_bit(config, tmp_path):
 
 def test_dropped_and_invalid_frames_never_reach_the_estimate(config):
     config.duration_s = 10.0
-    config.kinect_v1.dropout_probability = 0.4
-    config.kinect_v2.dropout_probability = 0.4
-    run = run_closed_loop(config)
+    config.cameras["kinect_v1"].dropout_probability = 0.4
+    config.cameras["kinect_v2"].dropout_probability = 0.4
+    run = simulate(config)
     valid = run.signals["kinect_v1.valid"].values[0]
     assert 0.5 < np.mean(valid) < 0.7
     fused = run.signals["fusion.estimated_state"].values

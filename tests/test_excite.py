@@ -5,9 +5,10 @@ import numpy as np
 import pytest
 
 from maskless.diagrams.cli import main
-from maskless.diagrams.commands.excite import build_excitation_loop, design_excitation
-from maskless.diagrams.commands.simulate import simulate_loop
-from maskless.diagrams.scenario import load_simulation_config
+from maskless.diagrams.excitation_run import ExcitationRequest, build_excitation_loop
+from maskless.diagrams.scenario import load_scenario
+from maskless.diagrams.simulation import simulate_loop
+from maskless.errors import ConfigError
 from maskless.recording import read_recording
 from maskless.systems.control.excitation import ExcitationSignal
 from maskless.systems.plant.pneumatic_physics import LIFT
@@ -17,7 +18,7 @@ PERIOD_S = 1.0 / 15.0
 
 
 def test_the_recorded_command_is_the_designed_signal():
-    config = load_simulation_config()
+    config = load_scenario()
     config.duration_s = 5.0
     values = np.linspace(0.07, 0.16, 75)
     signal = ExcitationSignal(np.arange(75) * PERIOD_S, values, PERIOD_S, "ramp")
@@ -34,7 +35,7 @@ def test_the_recorded_command_is_the_designed_signal():
 
 
 def test_open_loop_head_settles_at_the_plants_equilibrium_for_each_current():
-    config = load_simulation_config()
+    config = load_scenario()
     config.duration_s = 45.0  # five of the slowest time constants (~9 s at full inlet)
     p = config.pneumatic
     # The head starts at 6 mm of lift (about 118 mA). Valve hysteresis: a spool coming down
@@ -50,9 +51,11 @@ def test_open_loop_head_settles_at_the_plants_equilibrium_for_each_current():
         assert final_m == pytest.approx(steady_m, abs=0.02 * abs(steady_m - start_m))
 
 
-def test_design_refuses_an_unknown_signal():
-    with pytest.raises(ValueError, match="--signal 'chirp'"):
-        design_excitation("chirp", 0.05, 0.11, 10.0, PERIOD_S, 0, (0.0, 0.165))
+def test_request_refuses_an_unknown_signal_naming_the_flag_it_came_from():
+    with pytest.raises(ConfigError, match="signal 'chirp': expected one of uniform"):
+        ExcitationRequest(signal="chirp")
+    with pytest.raises(ConfigError, match="--signal 'chirp'"):
+        ExcitationRequest(signal="chirp", labels={"signal": "--signal"})
 
 
 def test_uniform_noise_std_is_a_over_root_3_and_recording_has_simulate_topics(tmp_path, capsys):
@@ -102,7 +105,9 @@ def test_bad_arguments_are_refused(tmp_path, capsys):
         capsys.readouterr().err
     )
     assert main(["excite", "--clock-periods", "0", "--out", str(out)]) == 2
-    assert "--clock-periods 0: expected 1 to" in capsys.readouterr().err
+    assert "--clock-periods 0: expected 1 or more samples per bit" in capsys.readouterr().err
+    assert main(["excite", "--signal", "prbs", "--clock-periods", "9000", "--out", str(out)]) == 2
+    assert "--clock-periods 9000: expected 1 to 4500" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["excite", "--band", "1-2"])
     assert "LOW:HIGH" in capsys.readouterr().err

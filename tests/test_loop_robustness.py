@@ -21,14 +21,14 @@ from maskless.analysis.stability.margins import (
     added_delay_samples_loop,
     feedback_loop_poles,
 )
-from maskless.diagrams.commands.analyze import offset_free_setup
-from maskless.diagrams.scenario import load_simulation_config
+from maskless.diagrams.plant_analysis import offset_free_setup
+from maskless.diagrams.scenario import load_scenario
 from maskless.systems.control.paper_lqg import paper_lqg
 
 
 @pytest.fixture(scope="module")
 def config():
-    return load_simulation_config()
+    return load_scenario()
 
 
 @pytest.fixture(scope="module")

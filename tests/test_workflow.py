@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from maskless.diagrams.cli import main
-from maskless.diagrams.commands.workflow import run_workflow
-from maskless.diagrams.scenario import load_simulation_config
+from maskless.diagrams.scenario import load_scenario
+from maskless.diagrams.workflow import run_workflow
 from maskless.systems.plant.pneumatic_design import linearize_pneumatic_plant
 
 
@@ -15,14 +15,12 @@ from maskless.systems.plant.pneumatic_design import linearize_pneumatic_plant
 def workflow(request, tmp_path_factory):
     out = tmp_path_factory.mktemp("workflow")
     lines = []
-    result = run_workflow(
-        out, excitation_s=600.0, order=request.param, closed_loop_s=60.0, echo=lines.append
-    )
+    result = run_workflow(out, order=request.param, closed_loop_s=60.0, echo=lines.append)
     return out, result, lines
 
 
 def linearised_gain_m_per_a(current_a):
-    A, B, C = linearize_pneumatic_plant(load_simulation_config().pneumatic, current_a)
+    A, B, C = linearize_pneumatic_plant(load_scenario().pneumatic, current_a)
     return float((C @ np.linalg.solve(-A, B))[0, 0])
 
 

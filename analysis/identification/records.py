@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import scipy.signal
 
-from maskless.errors import RecordError
+from maskless.errors import MissingFileError, RecordError
 from maskless.recording import read_recording
 
 
@@ -25,7 +25,7 @@ def read_csv_signal(path: str | Path, column: str | None = None) -> np.ndarray:
     """
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"record not found: {path}")
+        raise MissingFileError(f"record not found: {path}")
     try:
         with open(path, newline="") as stream:
             rows = list(csv.reader(stream))

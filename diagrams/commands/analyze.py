@@ -15,19 +15,24 @@ Both read the shipped configuration, or --config FILE.yaml over it (as `maskless
 
 import argparse
 import json
-import math
 from pathlib import Path
 
-from maskless.diagrams.cli import add_config_argument
+from maskless.diagrams.cli import add_config_argument, scenario_from_flags
+from maskless.diagrams.plant_analysis import (
+    StabilityRequest,
+    analyze_operating_range,
+    analyze_stability,
+    format_operating_range,
+    format_stability,
+)
 from maskless.errors import ConfigError
+from maskless.systems.units import mm_to_m
 
-# What `maskless analyze` reports as a message rather than a traceback.
-USER_ERRORS = (ConfigError, FileNotFoundError)
-
-# The sensor latency the controller must tolerate (issue 5: "up to 100 ms").
-LATENCY_REQUIREMENT_S = 0.1
-# Rows of a sweep the text summary shows (the JSON has them all).
-_SUMMARY_ROWS = 8
+_FLAG_OF_FIELD = {
+    "lifts_m": "--lifts",
+    "mass_factors": "--mass-factors",
+    "extra_latency_ticks": "--extra-latency-ticks",
+}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -88,377 +93,38 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         )
 
 
+def _parse_list(text: str, flag: str, convert, expected: str) -> list:
+    try:
+        return [convert(part) for part in text.split(",")]
+    except ValueError:
+        raise ConfigError(f"{flag} {text!r}: expected {expected}, separated by commas") from None
+
+
+def stability_request(args: argparse.Namespace) -> StabilityRequest:
+    """The cases the flags ask for (lifts from mm to m)."""
+    lifts_mm = _parse_list(args.lifts, "--lifts", float, "lifts in mm")
+    return StabilityRequest(
+        lifts_m=tuple(mm_to_m(lift) for lift in lifts_mm),
+        mass_factors=tuple(_parse_list(args.mass_factors, "--mass-factors", float, "factors")),
+        extra_latency_ticks=tuple(
+            _parse_list(args.extra_latency_ticks, "--extra-latency-ticks", int, "whole ticks")
+        ),
+        labels=_FLAG_OF_FIELD,
+    )
+
+
 def run_command(args: argparse.Namespace) -> int:
     """`maskless analyze`: returns the process exit code."""
     if args.analysis == "operating-range":
-        return _run_operating_range(args)
-    return _run_stability(args)
-
-
-def _parse_list(text: str, flag: str, convert, expected: str) -> list:
-    try:
-        values = [convert(part) for part in text.split(",")]
-    except ValueError:
-        raise ConfigError(f"{flag} {text!r}: expected {expected}, separated by commas") from None
-    return values
-
-
-def _write(out: Path, name: str, report: dict, as_json: bool, summary: str) -> None:
-    (out / name).write_text(json.dumps(report, indent=1))
-    print(json.dumps(report) if as_json else summary)
-
-
-# --- operating-range ------------------------------------------------------------------------------
-
-
-def operating_range_report(ranges: dict) -> dict:
-    """The sweeps as a JSON-ready dict in mA, mm, kPa, mm/mA and s.
-
-    Args:
-        ranges: valve -> ``operating_range.OperatingRange``, with "inlet" swept with the outlet
-            shut (its lifts are the working range).
-    """
-    from maskless.analysis.stability.margins import json_safe
-    from maskless.systems.units import a_to_ma, m_to_mm
-
-    valves = {}
-    for valve, sweep in ranges.items():
-        rows = [
-            {
-                "current_ma": a_to_ma(float(current)),
-                "lift_mm": m_to_mm(float(lift)),
-                "gauge_pressure_kpa": float(pressure) / 1000.0,
-                "dc_gain_mm_per_ma": float(gain),
-                "slow_time_constant_s": json_safe(taus[0]),
-                "time_constants_s": [json_safe(t) for t in taus],
-            }
-            for current, lift, pressure, gain, taus in zip(
-                sweep.currents_a,
-                sweep.lift_m,
-                sweep.gauge_pressure_pa,
-                sweep.dc_gain_m_per_a,
-                sweep.time_constants_s,
-                strict=True,
-            )
-        ]
-        valves[valve] = {
-            "held_valve": "outlet" if valve == "inlet" else "inlet",
-            "held_current_ma": a_to_ma(sweep.held_current_a),
-            "lift_span_mm": m_to_mm(sweep.lift_span_m),
-            "rows": rows,
-        }
-    inlet = ranges["inlet"]
-    return {
-        "valves": valves,
-        "working_range_mm": [
-            m_to_mm(float(inlet.lift_m.min())),
-            m_to_mm(float(inlet.lift_m.max())),
-        ],
-        "working_range_note": "steady lifts the inlet holds with the outlet shut",
-    }
-
-
-def _tidy(value: float, digits: int) -> float:
-    """``value`` rounded to ``digits``, with -0 shown as 0 (a pressure of -1e-11 kPa is zero)."""
-    return round(value, digits) + 0.0
-
-
-def _shown_rows(rows: list) -> list:
-    """At most ``_SUMMARY_ROWS`` rows, evenly spread, first and last included."""
-    if len(rows) <= _SUMMARY_ROWS:
-        return rows
-    picks = sorted({round(i * (len(rows) - 1) / (_SUMMARY_ROWS - 1)) for i in range(_SUMMARY_ROWS)})
-    return [rows[i] for i in picks]
-
-
-def format_operating_range(report: dict, head_mass_kg: float) -> str:
-    """The operating-range report as lines a person reads."""
-    lines = [f"maskless analyze operating-range: pneumatic plant, {head_mass_kg:g} kg head", ""]
-    for valve, entry in report["valves"].items():
-        rows = entry["rows"]
-        lines.append(
-            f"{valve.capitalize()} swept {rows[0]['current_ma']:.0f}-{rows[-1]['current_ma']:.0f} "
-            f"mA, {entry['held_valve']} held at {entry['held_current_ma']:.0f} mA: lift "
-            f"{rows[0]['lift_mm']:.2f} to {rows[-1]['lift_mm']:.2f} mm "
-            f"(span {entry['lift_span_mm']:.2f} mm)"
-        )
-        lines.append("   current    lift   gauge    DC gain   slow tau")
-        lines.append("      (mA)    (mm)   (kPa)    (mm/mA)        (s)")
-        for row in _shown_rows(rows):
-            lines.append(
-                f"    {row['current_ma']:6.1f}  {_tidy(row['lift_mm'], 2):6.2f}"
-                f"  {_tidy(row['gauge_pressure_kpa'], 3):6.3f}  {row['dc_gain_mm_per_ma']:+9.4f}"
-                f"  {row['slow_time_constant_s']:9.2f}"
-            )
-        lines.append("")
-    low, high = report["working_range_mm"]
-    lines.append(f"Working range (inlet, outlet shut): {low:.2f} to {high:.2f} mm of lift")
-    lines += ["Files:"] + [f"  {kind}: {path}" for kind, path in report["files"].items()]
-    return "\n".join(lines)
-
-
-def _run_operating_range(args: argparse.Namespace) -> int:
-    if args.points < 2:
-        raise ConfigError(f"--points {args.points}: expected at least 2 currents per valve")
-    from maskless.analysis.operating_range import default_operating_ranges
-    from maskless.analysis.stability.plots import plot_operating_range
-    from maskless.diagrams.scenario import load_simulation_config
-
-    config = load_simulation_config(args.config)
-    ranges = default_operating_ranges(config.pneumatic, args.points)
-    report = operating_range_report(ranges)
-    args.out.mkdir(parents=True, exist_ok=True)
-    plot = plot_operating_range(args.out / "operating_range.png", ranges)
-    report["files"] = {"report": str(args.out / "operating_range.json"), "plot": str(plot)}
-    summary = format_operating_range(report, config.pneumatic.head_mass_kg)
-    _write(args.out, "operating_range.json", report, args.json, summary)
-    return 0
-
-
-# --- stability ------------------------------------------------------------------------------------
-
-
-def offset_free_setup(config):
-    """(nominal parameters, allocation, design) of the offset-free LQG as
-    ``closed_loop.build_closed_loop`` designs it for the pneumatic plant: the nominal head's
-    parameters and their Hammerstein inverse (``NominalPneumatic``), the plant linearised at the
-    configured operating lift, and the measurement delay of the configured cameras."""
-    from maskless.diagrams.closed_loop import NominalPneumatic, pneumatic_offset_free_design
-
-    nominal = NominalPneumatic.of(config)
-    return nominal.parameters, nominal.allocation, pneumatic_offset_free_design(config, nominal)
-
-
-def _poles(poles) -> list[list[float]]:
-    return [[float(z.real), float(z.imag)] for z in poles]
-
-
-def _paper_report(paper) -> dict:
-    margins = paper.loop.margins
-    # |S - 1| = |L / (1 + L)| <= max|L| / (1 - max|L|): how much feedback changes the response.
-    change = paper.peak_loop_gain / (1.0 - paper.peak_loop_gain)
-    return {
-        "model": "the paper's identified model (Eq. 26) and LQG gains (Eq. 29-34)",
-        "sample_period_s": paper.loop.plant.sample_period_s,
-        "open_loop_poles": _poles(paper.open_loop_poles),
-        "regulator_poles": _poles(paper.regulator_poles),
-        "estimator_poles": _poles(paper.estimator_poles),
-        "closed_loop_poles": _poles(paper.loop.poles),
-        "regulator_pole_shift": paper.regulator_pole_shift,
-        "max_pole_magnitude": paper.loop.max_pole_magnitude,
-        "stable": paper.loop.stable,
-        "peak_loop_gain": paper.peak_loop_gain,
-        "peak_loop_gain_frequency_rad_s": paper.peak_loop_gain_frequency_rad_s,
-        "max_response_change_percent": 100.0 * change,
-        "margins": margins.as_dict(),
-        "verdict": (
-            f"max |L| = {paper.peak_loop_gain:.2e}: feedback changes the head's response by at "
-            f"most {100.0 * change:.1e} % and moves the plant's poles by "
-            f"{paper.regulator_pole_shift:.1e}; the loop is nearly open"
-        ),
-    }
-
-
-def _case_report(case, latency_requirement_s: float) -> dict:
-    from maskless.systems.units import a_to_ma, m_to_mm
-
-    valves = case.operating_point.valves
-    margins = case.analysis.margins
-    return {
-        "lift_mm": m_to_mm(case.lift_m),
-        "mass_factor": case.mass_factor,
-        "head_mass_kg": case.head_mass_kg,
-        "extra_latency_ticks": case.extra_delay_samples,
-        "extra_latency_s": case.extra_delay_s,
-        "command_mm": m_to_mm(case.operating_point.command_m),
-        "valve": valves.valve,
-        "inlet_current_ma": a_to_ma(valves.inlet_current_a),
-        "outlet_current_ma": a_to_ma(valves.outlet_current_a),
-        "stable": case.analysis.stable,
-        "max_pole_magnitude": case.analysis.max_pole_magnitude,
-        "poles": _poles(case.analysis.poles),
-        "margins": margins.as_dict(),
-        "delay_margin_exceeds_requirement": bool(margins.delay_margin_s > latency_requirement_s),
-    }
-
-
-def stability_report(paper, cases, design, plant_head_mass_kg: float) -> dict:
-    """The stability analysis as a JSON-ready dict (SI, with mm, mA, dB and degrees where the
-    field name says so).
-
-    Args:
-        paper: ``loop_robustness.analyze_paper_loop``.
-        cases: ``loop_robustness.robustness_cases``.
-        design: the offset-free LQG design the cases close the loop with.
-        plant_head_mass_kg: the configured plant's head mass, which the mass factors scale (kg).
-    """
-    from maskless.analysis.stability.margins import json_safe
-    from maskless.systems.units import m_to_mm
-
-    model = design.model
-    period = model.sample_period_s
-    delay = design.measurement_delay_samples
-    entries = [_case_report(case, LATENCY_REQUIREMENT_S) for case in cases]
-    margins = [case.analysis.margins for case in cases]
-    return {
-        "paper_lqg": _paper_report(paper),
-        "offset_free_lqg": {
-            "design": {
-                "operating_lift_mm": m_to_mm(model.input_operating_point),
-                "sample_period_s": period,
-                "measurement_delay_ticks": delay,
-                "measurement_delay_s": delay * period,
-            },
-            "plant_head_mass_kg": plant_head_mass_kg,
-            "latency_requirement_s": LATENCY_REQUIREMENT_S,
-            "all_stable": all(entry["stable"] for entry in entries),
-            "min_gain_margin_db": json_safe(min(m.gain_margin_db for m in margins)),
-            "min_phase_margin_deg": json_safe(min(m.phase_margin_deg for m in margins)),
-            "min_delay_margin_s": json_safe(min(m.delay_margin_s for m in margins)),
-            "max_pole_magnitude": max(case.analysis.max_pole_magnitude for case in cases),
-            "cases": entries,
-        },
-    }
-
-
-def _shown(value, fmt: str) -> str:
-    """A JSON number as text: "inf" (no crossing) as "none"."""
-    return "none" if value in ("inf", None) else format(value, fmt)
-
-
-def _paper_lines(paper: dict) -> list[str]:
-    ol = paper["open_loop_poles"][0]
-    estimator = ", ".join(f"{re:.3f}" for re, _ in paper["estimator_poles"])
-    margins = paper["margins"]
-    gain_margin = _shown(margins["gain_margin_db"], ".1f")
-    if margins["phase_margin_deg"] == "inf":
-        phase_margin = "none (|L| never reaches 1)"
+        if args.points < 2:
+            raise ConfigError(f"--points {args.points}: expected at least 2 currents per valve")
+        scenario = scenario_from_flags(args, {})
+        report = analyze_operating_range(scenario, args.points, out=args.out)
+        text = format_operating_range(report, scenario.pneumatic.head_mass_kg)
     else:
-        phase_margin = f"{margins['phase_margin_deg']:.1f} deg"
-    return [
-        f"Paper LQG on the paper's model (Eq. 26, Ts {paper['sample_period_s']:g} s)",
-        f"  open-loop poles {ol[0]:.5f} ± {abs(ol[1]):.5f}j; the regulator moves them by "
-        f"{paper['regulator_pole_shift']:.1e}; estimator poles {estimator}",
-        f"  max |L| {paper['peak_loop_gain']:.2e} at {paper['peak_loop_gain_frequency_rad_s']:.3f} "
-        f"rad/s; gain margin {gain_margin} dB; phase margin {phase_margin}",
-        f"  {paper['verdict']}",
-    ]
-
-
-def format_stability(report: dict) -> str:
-    """The stability report as lines a person reads: one row per lift and head mass, the margins
-    at each extra latency side by side."""
-    o = report["offset_free_lqg"]
-    d = o["design"]
-    groups: dict[tuple, list] = {}
-    for case in o["cases"]:
-        groups.setdefault((case["lift_mm"], case["mass_factor"]), []).append(case)
-    latencies = " / ".join(
-        f"+{1000 * c['extra_latency_s']:.0f}" for c in next(iter(groups.values()))
-    )
-    lines = [
-        "maskless analyze stability",
-        "",
-        *_paper_lines(report["paper_lqg"]),
-        "",
-        f"Offset-free LQG (designed at {d['operating_lift_mm']:g} mm lift for the nominal head, "
-        f"{d['measurement_delay_ticks']}-tick ({1000 * d['measurement_delay_s']:.0f} ms) "
-        f"measurement delay, Ts {d['sample_period_s']:.4f} s) on the linearised pneumatic plant;",
-        f"margins at {latencies} ms of extra sensor latency",
-        f"  {'lift mm':>7}  {'head (kg)':<10} {'valve':<6}  {'max|pole|':<9}  {'GM (dB)':<18}  "
-        f"{'PM (deg)':<21}  delay margin (s)",
-    ]
-    for (lift_mm, factor), cases in groups.items():
-        unstable = [f"+{1000 * c['extra_latency_s']:.0f} ms" for c in cases if not c["stable"]]
-        flag = f"  UNSTABLE at {', '.join(unstable)}" if unstable else ""
-
-        def column(name, fmt, cases=cases):
-            return " / ".join(_shown(c["margins"][name], fmt) for c in cases)
-
-        lines.append(
-            f"  {lift_mm:7.1f}  {cases[0]['head_mass_kg']:.2f} x{factor:<4g} "
-            f"{cases[0]['valve']:<6}  {max(c['max_pole_magnitude'] for c in cases):<9.5f}  "
-            f"{column('gain_margin_db', '.1f'):<18}  {column('phase_margin_deg', '.1f'):<21}  "
-            f"{column('delay_margin_s', '.2f')}{flag}"
-        )
-    unstable = sum(not case["stable"] for case in o["cases"])
-    verdict = "all stable" if unstable == 0 else f"{unstable} UNSTABLE"
-    lines += [
-        f"  {len(o['cases'])} cases, {verdict}; worst: GM {_shown(o['min_gain_margin_db'], '.1f')}"
-        f" dB, PM {_shown(o['min_phase_margin_deg'], '.1f')} deg, delay margin "
-        f"{_shown(o['min_delay_margin_s'], '.2f')} s (requirement: "
-        f"{1000 * o['latency_requirement_s']:.0f} ms of latency), max |pole| "
-        f"{o['max_pole_magnitude']:.5f}",
-        "Files:",
-        *(f"  {kind}: {path}" for kind, path in report["files"].items()),
-    ]
-    return "\n".join(lines)
-
-
-def _stability_inputs(args, config, allocation) -> tuple[list, list, list]:
-    """(lifts (m), mass factors, extra latencies (ticks)) from the flags, checked."""
-    import dataclasses
-
-    from maskless.analysis.stability.loop_robustness import holdable_lift_range_m
-    from maskless.systems.units import m_to_mm, mm_to_m
-
-    lifts_mm = _parse_list(args.lifts, "--lifts", float, "lifts in mm")
-    factors = _parse_list(args.mass_factors, "--mass-factors", float, "positive factors")
-    ticks = _parse_list(args.extra_latency_ticks, "--extra-latency-ticks", int, "whole ticks")
-    if not all(math.isfinite(f) and f > 0 for f in factors):
-        raise ConfigError(f"--mass-factors {args.mass_factors!r}: expected positive factors")
-    if min(ticks) < 0:
-        raise ConfigError(
-            f"--extra-latency-ticks {args.extra_latency_ticks!r}: expected whole ticks >= 0"
-        )
-    factors = sorted({1.0, *factors})
-    ticks = sorted({0, *ticks})
-    p = config.pneumatic
-    for factor in factors:
-        head = dataclasses.replace(p, head_mass_kg=factor * p.head_mass_kg)
-        try:
-            low, high = (m_to_mm(lift) for lift in holdable_lift_range_m(head, allocation))
-        except ValueError:  # no steady state: the bladder cannot carry this head at all
-            raise ConfigError(
-                f"--mass-factors {args.mass_factors!r}: a {head.head_mass_kg:.2f} kg head "
-                f"(x{factor:g}) cannot be held anywhere in the bladder's travel"
-            ) from None
-        for lift in lifts_mm:
-            if not (math.isfinite(lift) and low <= lift <= high):
-                raise ConfigError(
-                    f"--lifts {args.lifts!r}: {lift:g} mm is out of reach of the "
-                    f"{head.head_mass_kg:.2f} kg head (x{factor:g}), which rests between "
-                    f"{low:.2f} and {high:.2f} mm"
-                )
-    return [mm_to_m(lift) for lift in lifts_mm], factors, ticks
-
-
-def _run_stability(args: argparse.Namespace) -> int:
-    from maskless.analysis.stability.loop_robustness import analyze_paper_loop, robustness_cases
-    from maskless.analysis.stability.plots import (
-        plot_offset_free_loops,
-        plot_paper_loop,
-        plot_robustness,
-    )
-    from maskless.diagrams.scenario import load_simulation_config
-    from maskless.systems.control.paper_lqg import paper_lqg
-
-    config = load_simulation_config(args.config)
-    _, allocation, design = offset_free_setup(config)
-    lifts, factors, ticks = _stability_inputs(args, config, allocation)
-    paper = analyze_paper_loop(*paper_lqg(config.paper))
-    cases = robustness_cases(config.pneumatic, allocation, design, lifts, factors, ticks)
-    report = stability_report(paper, cases, design, config.pneumatic.head_mass_kg)
-    args.out.mkdir(parents=True, exist_ok=True)
-    report["files"] = {
-        "report": str(args.out / "stability.json"),
-        "paper_loop_plot": str(plot_paper_loop(args.out / "stability_paper_lqg.png", paper)),
-        "offset_free_plot": str(
-            plot_offset_free_loops(args.out / "stability_offset_free_lqg.png", cases)
-        ),
-        "margins_plot": str(
-            plot_robustness(args.out / "stability_margins.png", cases, LATENCY_REQUIREMENT_S)
-        ),
-    }
-    _write(args.out, "stability.json", report, args.json, format_stability(report))
+        request = stability_request(args)
+        scenario = scenario_from_flags(args, {})
+        report = analyze_stability(scenario, request, out=args.out)
+        text = format_stability(report)
+    print(json.dumps(report) if args.json else text)
     return 0

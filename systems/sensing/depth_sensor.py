@@ -12,6 +12,7 @@ zeros in the authors' logs) reads 0 with ``valid`` = 0, as a Kinect reports inva
 import math
 from dataclasses import dataclass
 from statistics import NormalDist
+from typing import ClassVar
 
 from pydrake.common import RandomDistribution
 from pydrake.symbolic import (
@@ -71,6 +72,9 @@ class DepthSensorConfig:
 class KinectV1Config(DepthSensorConfig):
     """Kinect v1 (Xbox 360, structured light); no fields beyond the shared ones."""
 
+    # The camera model, as the paper's parameters name it (its measurement variance sigma_r1^2).
+    model: ClassVar[str] = "kinect_v1"
+
 
 @dataclass
 class KinectV2Config(DepthSensorConfig):
@@ -83,6 +87,8 @@ class KinectV2Config(DepthSensorConfig):
         warmup_elapsed_s: how long the camera has been on when the simulation starts (s).
         resolution_m: depth quantisation step (m).
     """
+
+    model: ClassVar[str] = "kinect_v2"
 
     offset_m: float = UNSET
     warmup_drift_m: float = UNSET

@@ -13,7 +13,7 @@ from maskless.systems.control.paper_lqg import closed_loop_poles
 from maskless.systems.units import a_to_ma, m_to_mm
 
 if TYPE_CHECKING:
-    from maskless.diagrams.commands.simulate import SimulationRun
+    from maskless.diagrams.simulation import SimulationRun
 
 
 def estimation_start_s(config, times_s) -> float:
@@ -24,7 +24,7 @@ def estimation_start_s(config, times_s) -> float:
 
 def summarize(run: "SimulationRun") -> dict:
     """The run's figures as a JSON-ready dict (mm, mA and s, what people read)."""
-    config, loop, s = run.config, run.closed_loop, run.signals
+    config, loop, s = run.scenario, run.closed_loop, run.signals
     times = s["head_height_m"].times_s
     head, reference = s["head_height_m"].values[0], s["reference_head_height_m"].values[0]
     steps = [t for t in config.reference.step_times_s if t <= times[-1]]
@@ -95,11 +95,13 @@ def summarize(run: "SimulationRun") -> dict:
             "overshoot_mm": paper.reported_overshoot_mm,
             "settle_time_s": paper.reported_settle_time_s,
         },
-        "timing": {
-            "wall_time_s": run.wall_time_s,
-            "real_time_factor": config.duration_s / run.wall_time_s,
-        },
     }
+
+
+def summary_with_timing(run: "SimulationRun") -> dict:
+    """``run.metrics`` and how long the run took (which depends on the machine, not the run)."""
+    timing = {"wall_time_s": run.wall_time_s, "real_time_factor": run.real_time_factor}
+    return {**run.metrics, "timing": timing}
 
 
 def _paper_model_figures(loop, paper, command) -> dict:
@@ -201,11 +203,13 @@ def format_summary(summary: dict) -> str:
             f"{_poles(o['regulator_pole_magnitudes'])}, estimator "
             f"{_poles(o['estimator_pole_magnitudes'])}",
         ]
-    lines += [
-        "",
-        f"Wall time {summary['timing']['wall_time_s']:.3f} s "
-        f"({summary['timing']['real_time_factor']:.0f}x real time)",
-    ]
+    if "timing" in summary:
+        timing = summary["timing"]
+        lines += [
+            "",
+            f"Wall time {timing['wall_time_s']:.3f} s "
+            f"({timing['real_time_factor']:.0f}x real time)",
+        ]
     if "files" in summary:
         lines += ["Files:"] + [f"  {kind}: {path}" for kind, path in summary["files"].items()]
     return "\n".join(lines)

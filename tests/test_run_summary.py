@@ -1,7 +1,7 @@
 import pytest
 
-from maskless.analysis.summary import format_summary, summarize
-from maskless.diagrams.commands.simulate import run_closed_loop
+from maskless.diagrams.run_summary import format_summary, summarize
+from maskless.diagrams.simulation import simulate
 
 
 def test_the_paper_plant_does_not_follow_the_reference(paper_short_run):
@@ -21,13 +21,13 @@ def test_fusion_beats_each_local_track(run_name, request):
     assert estimation["fused_error_std_mm"] < estimation["kinect_v1_error_std_mm"]
     assert estimation["fused_error_std_mm"] < estimation["kinect_v2_error_std_mm"]
     # The paper's reported bound (Sec. III-C).
-    assert estimation["fused_error_std_mm"] < short_run.config.paper.reported_fused_std_mm
+    assert estimation["fused_error_std_mm"] < short_run.scenario.paper.reported_fused_std_mm
 
 
 def test_a_camera_that_never_sees_the_face_reports_no_error(config):
     config.duration_s = 6.0
-    config.kinect_v1.mount_height_m = 0.3  # the face is out of the camera's range
-    summary = summarize(run_closed_loop(config))
+    config.cameras["kinect_v1"].mount_height_m = 0.3  # the face is out of the camera's range
+    summary = summarize(simulate(config))
     assert summary["estimation"]["kinect_v1_valid_fraction"] == 0.0
     assert summary["estimation"]["kinect_v1_error_std_mm"] is None
     assert "kinect_v1  no valid frames" in format_summary(summary)
@@ -37,7 +37,7 @@ def test_text_names_the_configured_valve_range(paper_config):
     config = paper_config
     config.duration_s = 3.0
     config.paper.valve_saturation_current_ma = 150.0
-    text = format_summary(summarize(run_closed_loop(config)))
+    text = format_summary(summarize(simulate(config)))
     assert "(0-150 mA)" in text
     assert "overshoot n/a (no reference step)" in text  # the default step at 10 s never came
 

@@ -1,0 +1,346 @@
+"""Identifying models from a recorded experiment, as `maskless identify` does: the request, the
+record read from CSV or a maskless MCAP recording, the fits and their report, and the files.
+
+The figures and the verdict come from ``analysis.identification.report``; this module reads the
+record, chooses its parts and writes the results.
+"""
+
+import json
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from maskless.analysis.identification.model_file import model_file_contents
+from maskless.analysis.identification.plots import plot_compare, plot_residuals
+from maskless.analysis.identification.records import (
+    Detrended,
+    detrend,
+    parse_range,
+    read_csv_signal,
+    read_mcap_signals,
+)
+from maskless.analysis.identification.report import (
+    METHODS,
+    FittedModel,
+    Part,
+    identify,
+)
+from maskless.analysis.identification.subspace import default_horizon
+from maskless.diagrams.background import BackgroundTask
+from maskless.errors import RecordError
+from maskless.recording import COMMAND_TOPIC, FUSION_TOPIC
+
+# What a maskless recording's input and output are, unless the request says otherwise.
+DEFAULT_MCAP_INPUT = f"{COMMAND_TOPIC}:current_a"
+DEFAULT_MCAP_OUTPUT = f"{FUSION_TOPIC}:position_m"
+DETREND_MODES = ("mean", "linear", "none")
+# Records at least this long report the optimiser's progress on stderr.
+_PROGRESS_MIN_SAMPLES = 50_000
+# A maskless recording's field names end in their SI unit.
+_FIELD_UNITS = {"_a": "A", "_m": "m"}
+# How far --ts may be from a recording's own sample period before it is refused.
+_TS_TOLERANCE = 0.01
+
+
+
+
+@dataclass(frozen=True)
+class IdentificationRequest:
+    """What to identify, from which record; checked when made.
+
+    Attributes:
+        input: the input record: a CSV file (one value per line, or a column) or a maskless MCAP
+            recording.
+        output: the output record; None when ``input`` is an MCAP recording holding both.
+        ts: the sample period (s).
+        orders: the model orders to fit.
+        method: "pem", "armax", "arx" or "n4sid".
+        input_column: CSV column (name or index) or MCAP ``TOPIC:FIELD``; None for the default.
+        output_column: likewise for the output.
+        estimation: the part the models are fitted on: fractions ("0:0.6") or sample indices.
+        validation: the part they are judged on.
+        detrend: remove the whole record's "mean" (the authors' preprocessing), its "linear"
+            trend, or "none".
+        k_step: also report the K-step-ahead prediction fit; None for none.
+        estimate_initial_state: estimate x(0) with the model (else fix it at zero).
+        input_unit: the input's unit (m, mm, A, mA); None for mA (CSV) or the field's unit.
+        output_unit: likewise for the output (None: mm for CSV).
+        labels: field -> what the user calls it (a flag), for messages.
+    """
+
+    input: Path
+    ts: float
+    output: Path | None = None
+    orders: tuple[int, ...] = (2,)
+    method: str = "pem"
+    input_column: str | None = None
+    output_column: str | None = None
+    estimation: str = "0:0.6"
+    validation: str = "0.6:1"
+    detrend: str = "mean"
+    k_step: int | None = None
+    estimate_initial_state: bool = True
+    input_unit: str | None = None
+    output_unit: str | None = None
+    labels: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "input", Path(self.input))
+        if self.output is not None:
+            object.__setattr__(self, "output", Path(self.output))
+        object.__setattr__(self, "orders", tuple(self.orders))
+        label = self.label
+        if not (isinstance(self.ts, int | float) and math.isfinite(self.ts) and self.ts > 0):
+            raise RecordError(
+                f"{label('ts')} {self.ts}: expected a positive, finite sample period in s"
+            )
+        if not self.orders or any(
+            not isinstance(order, int) or isinstance(order, bool) or order < 1
+            for order in self.orders
+        ):
+            raise RecordError(
+                f"{label('orders')} {self.orders}: expected positive integers, e.g. 2,4"
+            )
+        if self.method not in METHODS:
+            raise RecordError(
+                f"{label('method')} {self.method!r}: expected one of {', '.join(METHODS)}"
+            )
+        if self.detrend not in DETREND_MODES:
+            raise RecordError(
+                f"{label('detrend')} {self.detrend!r}: expected {', '.join(DETREND_MODES)}"
+            )
+        if self.k_step is not None and self.k_step < 1:
+            raise RecordError(f"{label('k_step')} {self.k_step}: expected a positive integer")
+
+    def label(self, field_name: str) -> str:
+        """How the user named a field (its flag), for messages."""
+        return self.labels.get(field_name, field_name)
+
+
+@dataclass
+class IdentificationRun:
+    """The outcome of ``identify_record``.
+
+    Attributes:
+        request: what was asked.
+        report: the figures, baselines and verdict (the JSON `maskless identify` writes).
+        fitted_models: one per order, in the request's order.
+        parts: the detrended estimation and validation parts.
+        offsets: what detrending removed (and the detrended record).
+        units: (input unit, output unit).
+    """
+
+    request: IdentificationRequest
+    report: dict
+    fitted_models: list[FittedModel]
+    parts: list[Part]
+    offsets: Detrended
+    units: tuple[str, str]
+
+
+def _field_unit(topic_and_field: str) -> str:
+    for suffix, unit in _FIELD_UNITS.items():
+        if topic_and_field.endswith(suffix):
+            return unit
+    return "unknown"
+
+
+def read_record(
+    request: IdentificationRequest,
+) -> tuple[np.ndarray, np.ndarray, tuple[str, str]]:
+    """The input and output records and their units, refused with the file named when they
+    cannot be used."""
+    label = request.label
+    output_path = request.output or request.input
+    if request.input.suffix == ".mcap" or output_path.suffix == ".mcap":
+        input_field = request.input_column or DEFAULT_MCAP_INPUT
+        output_field = request.output_column or DEFAULT_MCAP_OUTPUT
+        if output_path == request.input:  # one recording holds both: read it once
+            (input_times, u), (output_times, y) = read_mcap_signals(
+                request.input, input_field, output_field
+            )
+        else:
+            ((input_times, u),) = read_mcap_signals(request.input, input_field)
+            ((output_times, y),) = read_mcap_signals(output_path, output_field)
+        common, input_index, output_index = np.intersect1d(
+            input_times, output_times, return_indices=True
+        )
+        if common.size < 2:
+            raise RecordError(f"{request.input} and {output_path}: fewer than 2 common timestamps")
+        steps_s = np.diff(common) * 1e-9
+        period_s = float(np.median(steps_s))
+        if abs(period_s - request.ts) > _TS_TOLERANCE * period_s:
+            raise RecordError(
+                f"{label('ts')} {request.ts}: the recording's samples are {period_s:.6g} s apart"
+            )
+        if np.any(np.abs(steps_s - period_s) > 0.5 * period_s):
+            gap = int(np.argmax(np.abs(steps_s - period_s) > 0.5 * period_s))
+            raise RecordError(
+                f"{request.input}: {input_field} and {output_field} share no samples between "
+                f"{common[gap] * 1e-9:.3f} s and {common[gap + 1] * 1e-9:.3f} s; a record with "
+                "gaps cannot be identified as one sequence"
+            )
+        units = (_field_unit(input_field), _field_unit(output_field))
+        return u[input_index], y[output_index], units
+    if request.output is None:
+        raise RecordError(
+            f"{label('output')} is required when {label('input')} is a CSV file"
+        )
+    u = read_csv_signal(request.input, request.input_column)
+    y = read_csv_signal(request.output, request.output_column)
+    if u.size != y.size:
+        raise RecordError(
+            f"{request.input} has {u.size} values but {request.output} has {y.size}; expected one "
+            "output per input"
+        )
+    return u, y, ("mA", "mm")
+
+
+def minimum_samples(orders: list[int], method: str) -> int:
+    """The fewest samples a part needs for the largest order (N4SID's Hankel matrices need more)."""
+    largest = max(orders)
+    return 12 * default_horizon(largest) if method == "n4sid" else 10 * largest
+
+
+def identify_record(request: IdentificationRequest) -> "IdentificationRun":
+    """Reads the record ``request`` names, fits each order on its estimation part and judges it
+    on both parts (see ``analysis.identification.report.identify``).
+
+    Raises:
+        RecordError: a record that cannot be read or used as asked, naming the file and field.
+    """
+    label = request.label
+    orders = list(request.orders)
+    u, y, units = read_record(request)
+    units = (request.input_unit or units[0], request.output_unit or units[1])
+    if np.ptp(u) == 0:
+        raise RecordError(f"{request.input}: the input is constant, so it explains nothing to fit")
+    estimation_slice = parse_range(request.estimation, y.size, label("estimation"))
+    validation_slice = parse_range(request.validation, y.size, label("validation"))
+    needed = minimum_samples(orders, request.method)
+    for name, part in (("estimation", estimation_slice), ("validation", validation_slice)):
+        flag = label(name)
+        if part.stop - part.start < needed:
+            raise RecordError(
+                f"{flag} selects {part.stop - part.start} samples; order {max(orders)} with "
+                f"{request.method} needs at least {needed}"
+            )
+        if request.k_step is not None and request.k_step >= part.stop - part.start:
+            raise RecordError(f"{label('k_step')} {request.k_step}: longer than the {flag} part")
+    offsets = detrend(u, y, request.detrend)
+    parts = [
+        Part("estimation", offsets.u[estimation_slice], offsets.y[estimation_slice]),
+        Part("validation", offsets.u[validation_slice], offsets.y[validation_slice]),
+    ]
+    overlap = max(estimation_slice.start, validation_slice.start) < min(
+        estimation_slice.stop, validation_slice.stop
+    )
+
+    def report_progress(evaluations, cost):
+        print(f"fitting: {evaluations} evaluations, cost {cost:.6g}", file=sys.stderr, flush=True)
+
+    long_record = parts[0].y.size >= _PROGRESS_MIN_SAMPLES
+    report, fitted_models = identify(
+        request.method,
+        parts[0],
+        parts[1],
+        orders,
+        request.ts,
+        estimate_initial_state=request.estimate_initial_state,
+        progress=report_progress if long_record else None,
+        k_step=request.k_step,
+        overlap=overlap,
+    )
+    report["record"] = {
+        "samples": int(y.size),
+        "estimation": [estimation_slice.start, estimation_slice.stop],
+        "validation": [validation_slice.start, validation_slice.stop],
+        "detrend": request.detrend,
+        "input_offset": offsets.input_offset,
+        "output_offset": offsets.output_offset,
+        "units": {"input": units[0], "output": units[1]},
+    }
+    return IdentificationRun(request, report, fitted_models, parts, offsets, units)
+
+
+def identify_to_files(request: IdentificationRequest, out: str | Path) -> dict:
+    """``identify_record`` then ``write_identification`` (``maskless identify``)."""
+    return write_identification(identify_record(request), out)
+
+
+def write_identification(identified: "IdentificationRun", out: str | Path) -> dict:
+    """Writes OUT/report.json, one model file per order and the compare and residual plots (on
+    the second core meanwhile); returns the report with each model's file named."""
+    fitted_models, parts, report = identified.fitted_models, identified.parts, identified.report
+    offsets, units, request = identified.offsets, identified.units, identified.request
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+
+    def plots():
+        for fitted in fitted_models:
+            stem = f"{fitted.method}_order{fitted.model.order}"
+            plot_compare(out / f"compare_{stem}.png", fitted, parts, request.ts, units[1])
+            plot_residuals(out / f"residuals_{stem}.png", fitted, parts)
+
+    plotting = BackgroundTask(f"plotting into {out}", plots)
+    linear = request.detrend == "linear"
+    for fitted, entry in zip(fitted_models, report["models"], strict=True):
+        contents = model_file_contents(
+            fitted,
+            sample_period_s=request.ts,
+            input_unit=units[0],
+            output_unit=units[1],
+            input_offset=offsets.input_offset,
+            output_offset=offsets.output_offset,
+            detrend=request.detrend,
+            trend_slopes_per_sample=(offsets.input_slope, offsets.output_slope) if linear else None,
+            innovations_variance=entry["estimation"]["mse"],
+            verdict=entry["verdict"],
+        )
+        path = out / f"model_{fitted.method}_order{fitted.model.order}.yaml"
+        path.write_text(yaml.safe_dump(contents, sort_keys=False))
+        entry["model_file"] = str(path)
+    (out / "report.json").write_text(json.dumps(report, indent=1))
+    plotting.wait()
+    return report
+
+
+def format_identification_report(report: dict, out: str | Path) -> str:
+    """The report as lines a person reads."""
+    lines = []
+    for model in report["models"]:
+        stability = "stable" if model["stable"] else "UNSTABLE"
+        lines.append(
+            f"{model['method']} order {model['order']} ({model['parameters']} parameters, "
+            f"initial state {model['initial_state']}, {stability})"
+        )
+        for name in ("estimation", "validation"):
+            part = model[name]
+            k_steps = [key for key in part if key.endswith("step") and key != "fit_percent_1step"]
+            extra = "".join(
+                f", {key.removeprefix('fit_percent_')} {part[key]:.3f} %" for key in k_steps
+            )
+            lines.append(
+                f"  {name:<10} fit 1-step {part['fit_percent_1step']:.6f} %{extra}, "
+                f"sim {part['fit_percent_sim']:.2f} %, MSE {part['mse']:.6g}, "
+                f"FPE {part['fpe']:.6g}, n {part['n']}"
+            )
+        margins = model["margins_on_validation"]
+        lines.append(
+            "  margins on validation (fit points): "
+            + ", ".join(f"{name} {value:+.3f}" for name, value in margins.items())
+        )
+        if "warning" in model:
+            lines.append(f"  WARNING: {model['warning']}")
+    naive = report["baselines"]["naive_last_value"]
+    lines.append(
+        "baseline 'next value = last value': fit 1-step "
+        + ", ".join(f"{name} {part['fit_percent_1step']:.3f} %" for name, part in naive.items())
+    )
+    lines += [f"WARNING: {warning}" for warning in report["warnings"]]
+    lines += ["", report["verdict"], "", f"report, models and plots in {out}"]
+    return "\n".join(lines)

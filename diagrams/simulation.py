@@ -1,0 +1,184 @@
+"""Simulating a scenario's closed loop, and what a run gives back.
+
+``simulate(scenario)`` builds the closed loop (``closed_loop.build_closed_loop``), runs it seeded
+with the scenario's seed, and returns a ``SimulationRun``: its logged signals by port name, its
+metrics, and methods that write its MCAP recording and its plot.
+"""
+
+import functools
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from pydrake.common import RandomGenerator
+from pydrake.systems.analysis import Simulator
+
+from maskless.diagrams.closed_loop import ClosedLoop, Signal, build_closed_loop, logged_signals
+from maskless.diagrams.run_recording import signal_channels
+from maskless.diagrams.run_summary import summarize, summary_with_timing
+from maskless.diagrams.scenario import Scenario
+
+# A long run reports progress after each of this many equal chunks.
+PROGRESS_CHUNKS = 10
+# Runs at least this long report their progress on stderr in ``simulate_to_files``.
+_PROGRESS_MIN_DURATION_S = 600.0
+
+
+@dataclass
+class SimulationRun:
+    """The outcome of ``simulate``.
+
+    Attributes:
+        scenario: what was simulated (its ``duration_s`` and ``random_seed`` as run).
+        closed_loop: the built loop: its Diagram, the controller's model and design.
+        signals: exported output name -> its logged samples (``head_height_m``,
+            ``reference_head_height_m``, ``fusion.estimated_state``, ...).
+        wall_time_s: how long the simulation took (s), not counting the build.
+    """
+
+    scenario: Scenario
+    closed_loop: ClosedLoop
+    signals: dict[str, Signal]
+    wall_time_s: float
+
+    @functools.cached_property
+    def metrics(self) -> dict:
+        """Tracking, estimation and controller figures (mm, mA and s), as
+        ``maskless simulate --json`` prints them (less the timing and the files written)."""
+        return summarize(self)
+
+    @property
+    def real_time_factor(self) -> float:
+        """Simulated seconds per wall-clock second."""
+        return self.scenario.duration_s / self.wall_time_s
+
+    def recording_channels(self) -> list:
+        """The run's logs as the channels of its MCAP recording."""
+        return signal_channels(self.signals, self.closed_loop.sensor_names)
+
+    def write_mcap(self, path: str | Path) -> Path:
+        """Writes the run's recording (topics in ``maskless.recording``) to ``path``."""
+        from maskless.recording import write_recording
+
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_recording(path, self.recording_channels())
+        return path
+
+    def plot_arguments(self, show_tolerance: bool = True) -> dict:
+        """``plot_closed_loop``'s keyword arguments: arrays and strings, which pickle (a worker
+        process can draw them)."""
+        s = self.signals
+        return dict(
+            times_s=s["head_height_m"].times_s,
+            reference_m=s["reference_head_height_m"].values[0],
+            head_m=s["head_height_m"].values[0],
+            local_tracks_m={
+                name: s[f"{name}_filter.estimated_state"].values[0]
+                for name in self.closed_loop.sensor_names
+            },
+            fused_m=s["fusion.estimated_state"].values[0],
+            command_times_s=s["inlet_valve_current_a"].times_s,
+            command_a=s["inlet_valve_current_a"].values[0],
+            outlet_command_a=s["outlet_valve_current_a"].values[0],
+            title=f"{self.closed_loop.plant} plant, {self.closed_loop.controller}: head height "
+            "and valve commands",
+            tolerance_m=self.scenario.metrics.tolerance_m if show_tolerance else None,
+        )
+
+    def plot(self, path: str | Path, show_tolerance: bool = True) -> Path:
+        """Draws head height, reference, tracks and valve commands to ``path`` (PNG), with the
+        clinical band about the reference when ``show_tolerance``."""
+        from maskless.analysis.closed_loop_plots import plot_closed_loop
+
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return plot_closed_loop(path, **self.plot_arguments(show_tolerance))
+
+
+def simulate(
+    scenario: Scenario,
+    *,
+    record: bool = True,
+    progress: Callable[[float, float], None] | None = None,
+    on_chunk: Callable[[dict[str, Signal]], None] | None = None,
+    nominal=None,
+) -> SimulationRun:
+    """Builds and simulates ``scenario``'s closed loop for its ``duration_s``, seeded with its
+    ``random_seed``.
+
+    Args:
+        scenario: a validated scenario (``load_scenario``).
+        record: log every exported output (False measures the bare diagram).
+        progress: called as progress(simulated_s, duration_s) after each chunk of the run.
+        on_chunk: called after each chunk with the samples logged since the previous call (a
+            recording can be written while the loop runs).
+        nominal: ``closed_loop.NominalPneumatic.of(scenario)`` when the caller has it already (a
+            Monte Carlo over head masses shares one).
+    """
+    closed_loop = build_closed_loop(scenario, record=record, nominal=nominal)
+    return simulate_loop(closed_loop, scenario, progress=progress, on_chunk=on_chunk)
+
+
+def simulate_loop(
+    closed_loop: ClosedLoop,
+    scenario: Scenario,
+    *,
+    progress: Callable[[float, float], None] | None = None,
+    on_chunk: Callable[[dict[str, Signal]], None] | None = None,
+) -> SimulationRun:
+    """Simulates a built loop for ``scenario.duration_s``, seeded with ``scenario.random_seed``,
+    and collects its logs (see ``simulate`` for the callbacks)."""
+    simulator = Simulator(closed_loop.diagram)
+    context = simulator.get_mutable_context()
+    closed_loop.diagram.SetRandomContext(context, RandomGenerator(scenario.random_seed))
+    start = time.perf_counter()
+    simulator.Initialize()
+    chunks = PROGRESS_CHUNKS if progress is not None or on_chunk is not None else 1
+    taken: dict = {}  # per log sink, the samples already handed to on_chunk
+    for chunk in range(1, chunks + 1):
+        simulator.AdvanceTo(scenario.duration_s * chunk / chunks)
+        if progress is not None:
+            progress(context.get_time(), scenario.duration_s)
+        if on_chunk is not None:
+            on_chunk(logged_signals(closed_loop, context, taken))
+    wall_time_s = time.perf_counter() - start
+    return SimulationRun(scenario, closed_loop, logged_signals(closed_loop, context), wall_time_s)
+
+
+def simulate_to_files(scenario: Scenario, out: str | Path) -> dict:
+    """Simulates ``scenario``, writing OUT/run.mcap while the loop runs and OUT/run.png after
+    (``maskless simulate``); runs of 10 minutes or more report progress on stderr.
+
+    Returns:
+        The run's metrics with its timing and the files written (``files``).
+    """
+    from maskless.analysis.closed_loop_plots import plot_closed_loop, prepare_plotting
+    from maskless.diagrams.background import Worker, serve_calls
+    from maskless.recording import write_recording_batches
+
+    def report_progress(simulated_s, duration_s):
+        print(f"simulated {simulated_s:.0f} / {duration_s:.0f} s", file=sys.stderr, flush=True)
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    mcap_path, png_path = out / "run.mcap", out / "run.png"
+    camera_names = list(scenario.cameras)
+    # The second core works while the loop runs: one worker writes the recording as the samples
+    # come in, another imports matplotlib and then plots.
+    recorder = Worker(f"writing {mcap_path}", write_recording_batches, mcap_path)
+    plotter = Worker(f"plotting {png_path}", serve_calls, prepare_plotting)
+    long_run = scenario.duration_s >= _PROGRESS_MIN_DURATION_S
+    run = simulate(
+        scenario,
+        progress=report_progress if long_run else None,
+        on_chunk=lambda signals: recorder.send(signal_channels(signals, camera_names)),
+    )
+    plotter.send((plot_closed_loop, (png_path,), run.plot_arguments()))
+    summary = summary_with_timing(run)
+    recorder.wait()
+    plotter.wait()
+    summary["files"] = {"recording": str(mcap_path), "plot": str(png_path)}
+    return summary

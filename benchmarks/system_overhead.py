@@ -21,7 +21,8 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import ConstantVectorSource, SymbolicVectorSystem
 
-from maskless.diagrams.commands.simulate import recording_channels, run_closed_loop
+from maskless.diagrams.commands.simulate import run_closed_loop
+from maskless.diagrams.run_recording import recording_channels
 from maskless.diagrams.scenario import load_simulation_config
 from maskless.recording import Channel, write_recording
 from maskless.systems.sensing.local_kalman_filter import (

@@ -3,7 +3,8 @@ import json
 import pytest
 
 from maskless.diagrams.cli import main
-from maskless.diagrams.commands.simulate import recording_channels, run_closed_loop
+from maskless.diagrams.commands.simulate import run_closed_loop
+from maskless.diagrams.run_recording import recording_channels
 from maskless.diagrams.scenario import load_simulation_config
 from maskless.recording import read_recording, write_recording
 

@@ -5,7 +5,8 @@ import pytest
 from mcap.reader import make_reader
 
 from maskless.diagrams.closed_loop import build_closed_loop
-from maskless.diagrams.commands.simulate import recording_channels, run_closed_loop
+from maskless.diagrams.commands.simulate import run_closed_loop
+from maskless.diagrams.run_recording import recording_channels
 from maskless.recording import read_recording, write_recording
 
 TOPICS = {

@@ -30,12 +30,8 @@ from maskless.diagrams.closed_loop import (
     assemble_loop,
     inlet_current_range_a,
 )
-from maskless.diagrams.commands.simulate import (
-    SimulationRun,
-    plot_run,
-    recording_channels,
-    simulate_loop,
-)
+from maskless.diagrams.commands.simulate import SimulationRun, plot_run, simulate_loop
+from maskless.diagrams.run_recording import recording_channels
 from maskless.diagrams.scenario import SimulationConfig, load_config_with_overrides
 from maskless.errors import ConfigError
 from maskless.recording import write_recording

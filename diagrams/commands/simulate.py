@@ -24,18 +24,10 @@ from maskless.analysis.summary import format_summary, summarize
 from maskless.diagrams.background import Worker, serve_calls
 from maskless.diagrams.cli import add_config_argument
 from maskless.diagrams.closed_loop import ClosedLoop, build_closed_loop
+from maskless.diagrams.run_recording import signal_channels
 from maskless.diagrams.scenario import SimulationConfig, load_config_with_overrides
 from maskless.errors import ConfigError
-from maskless.recording import (
-    COMMAND_TOPIC,
-    FUSION_TOPIC,
-    HEAD_POSITION_TOPIC,
-    REFERENCE_TOPIC,
-    Channel,
-    filter_estimate_topic,
-    sensor_measurement_topic,
-    write_recording_batches,
-)
+from maskless.recording import write_recording_batches
 
 # What `maskless simulate` reports as a message rather than a traceback.
 USER_ERRORS = (ConfigError, FileNotFoundError)
@@ -128,74 +120,6 @@ def _logged_signals(closed_loop: ClosedLoop, context, taken: dict | None = None)
         signals[name] = Signal(log.sample_times()[start:].copy(), log.data()[rows, start:].copy())
         taken[sink] = log.num_samples()
     return signals
-
-
-def _nanoseconds(times_s: np.ndarray) -> np.ndarray:
-    return np.round(times_s * 1e9).astype(np.int64)
-
-
-def _estimate_channel(topic: str, state: Signal, covariance: Signal) -> Channel:
-    return Channel(
-        topic,
-        _nanoseconds(state.times_s),
-        {
-            "position_m": state.values[0],
-            "velocity_m_s": state.values[1],
-            "covariance": covariance.values.T.reshape(-1, 2, 2),
-        },
-    )
-
-
-def recording_channels(run: SimulationRun) -> list[Channel]:
-    """The run's logs as MCAP channels (the topics of the recording format)."""
-    return signal_channels(run.signals, run.closed_loop.sensor_names)
-
-
-def signal_channels(s: dict[str, Signal], sensor_names: list[str]) -> list[Channel]:
-    """Logged signals (a whole run's or a chunk's) as MCAP channels."""
-    channels = [
-        Channel(
-            REFERENCE_TOPIC,
-            _nanoseconds(s["reference_head_height_m"].times_s),
-            {"reference_m": s["reference_head_height_m"].values[0]},
-        ),
-        Channel(
-            HEAD_POSITION_TOPIC,
-            _nanoseconds(s["head_height_m"].times_s),
-            {"head_position_m": s["head_height_m"].values[0]},
-        ),
-    ]
-    for name in sensor_names:
-        distance, valid = s[f"{name}.distance_m"], s[f"{name}.valid"]
-        channels.append(
-            Channel(
-                sensor_measurement_topic(name),
-                _nanoseconds(distance.times_s),
-                {"distance_m": distance.values[0], "valid": valid.values[0] > 0.5},
-            )
-        )
-    for name in sensor_names:
-        channels.append(
-            _estimate_channel(
-                filter_estimate_topic(name),
-                s[f"{name}_filter.estimated_state"],
-                s[f"{name}_filter.covariance"],
-            )
-        )
-    channels.append(
-        _estimate_channel(FUSION_TOPIC, s["fusion.estimated_state"], s["fusion.covariance"])
-    )
-    channels.append(
-        Channel(
-            COMMAND_TOPIC,
-            _nanoseconds(s["inlet_valve_current_a"].times_s),
-            {
-                "current_a": s["inlet_valve_current_a"].values[0],
-                "outlet_current_a": s["outlet_valve_current_a"].values[0],
-            },
-        )
-    )
-    return channels
 
 
 def plot_run(run: SimulationRun, path: Path, show_tolerance: bool = True) -> Path:

@@ -1,0 +1,91 @@
+"""A run's logged signals as recording channels: which Drake log feeds which MCAP topic and field.
+
+The closed loop logs its exported output ports (``diagrams.closed_loop.export_and_log``) by port
+name; these functions turn those logs, a whole run's or a chunk's, into the ``Channel`` columns
+``maskless.recording`` writes.
+"""
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from maskless.recording import (
+    COMMAND_TOPIC,
+    FUSION_TOPIC,
+    HEAD_POSITION_TOPIC,
+    REFERENCE_TOPIC,
+    Channel,
+    filter_estimate_topic,
+    sensor_measurement_topic,
+)
+
+if TYPE_CHECKING:
+    from maskless.diagrams.commands.simulate import Signal, SimulationRun
+
+
+def _nanoseconds(times_s: np.ndarray) -> np.ndarray:
+    return np.round(times_s * 1e9).astype(np.int64)
+
+
+def _estimate_channel(topic: str, state: "Signal", covariance: "Signal") -> Channel:
+    return Channel(
+        topic,
+        _nanoseconds(state.times_s),
+        {
+            "position_m": state.values[0],
+            "velocity_m_s": state.values[1],
+            "covariance": covariance.values.T.reshape(-1, 2, 2),
+        },
+    )
+
+
+def recording_channels(run: "SimulationRun") -> list[Channel]:
+    """The run's logs as MCAP channels (the topics of the recording format)."""
+    return signal_channels(run.signals, run.closed_loop.sensor_names)
+
+
+def signal_channels(s: dict[str, "Signal"], sensor_names: list[str]) -> list[Channel]:
+    """Logged signals (a whole run's or a chunk's) as MCAP channels."""
+    channels = [
+        Channel(
+            REFERENCE_TOPIC,
+            _nanoseconds(s["reference_head_height_m"].times_s),
+            {"reference_m": s["reference_head_height_m"].values[0]},
+        ),
+        Channel(
+            HEAD_POSITION_TOPIC,
+            _nanoseconds(s["head_height_m"].times_s),
+            {"head_position_m": s["head_height_m"].values[0]},
+        ),
+    ]
+    for name in sensor_names:
+        distance, valid = s[f"{name}.distance_m"], s[f"{name}.valid"]
+        channels.append(
+            Channel(
+                sensor_measurement_topic(name),
+                _nanoseconds(distance.times_s),
+                {"distance_m": distance.values[0], "valid": valid.values[0] > 0.5},
+            )
+        )
+    for name in sensor_names:
+        channels.append(
+            _estimate_channel(
+                filter_estimate_topic(name),
+                s[f"{name}_filter.estimated_state"],
+                s[f"{name}_filter.covariance"],
+            )
+        )
+    channels.append(
+        _estimate_channel(FUSION_TOPIC, s["fusion.estimated_state"], s["fusion.covariance"])
+    )
+    channels.append(
+        Channel(
+            COMMAND_TOPIC,
+            _nanoseconds(s["inlet_valve_current_a"].times_s),
+            {
+                "current_a": s["inlet_valve_current_a"].values[0],
+                "outlet_current_a": s["outlet_valve_current_a"].values[0],
+            },
+        )
+    )
+    return channels

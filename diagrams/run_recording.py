@@ -2,7 +2,8 @@
 
 The closed loop logs its exported output ports (``diagrams.closed_loop.export_and_log``) by port
 name; these functions turn those logs, a whole run's or a chunk's, into the ``Channel`` columns
-``maskless.recording`` writes.
+``maskless.recording`` writes. A field is named after its port (a state estimate's two components
+after what they estimate; see ``maskless.recording``).
 """
 
 from typing import TYPE_CHECKING
@@ -12,7 +13,7 @@ import numpy as np
 from maskless.recording import (
     COMMAND_TOPIC,
     FUSION_TOPIC,
-    HEAD_POSITION_TOPIC,
+    HEAD_HEIGHT_TOPIC,
     REFERENCE_TOPIC,
     Channel,
     filter_estimate_topic,
@@ -32,8 +33,8 @@ def _estimate_channel(topic: str, state: "Signal", covariance: "Signal") -> Chan
         topic,
         _nanoseconds(state.times_s),
         {
-            "position_m": state.values[0],
-            "velocity_m_s": state.values[1],
+            "head_height_m": state.values[0],
+            "head_velocity_m_s": state.values[1],
             "covariance": covariance.values.T.reshape(-1, 2, 2),
         },
     )
@@ -50,12 +51,12 @@ def signal_channels(s: dict[str, "Signal"], sensor_names: list[str]) -> list[Cha
         Channel(
             REFERENCE_TOPIC,
             _nanoseconds(s["reference_head_height_m"].times_s),
-            {"reference_m": s["reference_head_height_m"].values[0]},
+            {"reference_head_height_m": s["reference_head_height_m"].values[0]},
         ),
         Channel(
-            HEAD_POSITION_TOPIC,
+            HEAD_HEIGHT_TOPIC,
             _nanoseconds(s["head_height_m"].times_s),
-            {"head_position_m": s["head_height_m"].values[0]},
+            {"head_height_m": s["head_height_m"].values[0]},
         ),
     ]
     for name in sensor_names:
@@ -83,8 +84,8 @@ def signal_channels(s: dict[str, "Signal"], sensor_names: list[str]) -> list[Cha
             COMMAND_TOPIC,
             _nanoseconds(s["inlet_valve_current_a"].times_s),
             {
-                "current_a": s["inlet_valve_current_a"].values[0],
-                "outlet_current_a": s["outlet_valve_current_a"].values[0],
+                "inlet_valve_current_a": s["inlet_valve_current_a"].values[0],
+                "outlet_valve_current_a": s["outlet_valve_current_a"].values[0],
             },
         )
     )

@@ -56,13 +56,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--input-column",
         default=None,
         metavar="NAME|INDEX|TOPIC:FIELD",
-        help="CSV column, or MCAP TOPIC:FIELD (default for MCAP: /controller/command:current_a)",
+        help="CSV column, or MCAP TOPIC:FIELD (default for MCAP: "
+        "/controller/command:inlet_valve_current_a)",
     )
     parser.add_argument(
         "--output-column",
         default=None,
         metavar="NAME|INDEX|TOPIC:FIELD",
-        help="CSV column, or MCAP TOPIC:FIELD (default for MCAP: /fusion/estimate:position_m)",
+        help="CSV column, or MCAP TOPIC:FIELD (default for MCAP: /fusion/estimate:head_height_m)",
     )
     parser.add_argument(
         "--ts",
@@ -148,8 +149,8 @@ def read_signals(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray, tupl
     cannot be used."""
     output_path = args.output or args.input
     if args.input.suffix == ".mcap" or output_path.suffix == ".mcap":
-        input_field = args.input_column or f"{COMMAND_TOPIC}:current_a"
-        output_field = args.output_column or f"{FUSION_TOPIC}:position_m"
+        input_field = args.input_column or f"{COMMAND_TOPIC}:inlet_valve_current_a"
+        output_field = args.output_column or f"{FUSION_TOPIC}:head_height_m"
         if output_path == args.input:  # one recording holds both: read it once
             (input_times, u), (output_times, y) = read_mcap_signals(
                 args.input, input_field, output_field

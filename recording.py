@@ -11,6 +11,37 @@ numpy scalars once per message.
 Files are written *unchunked*: each message is a record of its own on disk. That costs a little
 space, but a file whose writer died (or that was cut at any byte) can be read back up to its last
 complete message, which a chunked file cannot promise (a whole chunk would be lost).
+
+Topics and fields (format version 2). A field is named after the Drake output port its values come
+from (``diagrams.closed_loop.export_and_log``), so a signal has one name from the diagram to the
+file:
+
+=================================  =============================================================
+topic                              fields
+=================================  =============================================================
+``/reference``                     ``reference_head_height_m``
+``/plant/head_height``             ``head_height_m``
+``/sensors/NAME/measurement``      ``distance_m``, ``valid``
+``/filters/NAME/estimate``         ``head_height_m``, ``head_velocity_m_s``, ``covariance``
+``/fusion/estimate``               ``head_height_m``, ``head_velocity_m_s``, ``covariance``
+``/controller/command``            ``inlet_valve_current_a``, ``outlet_valve_current_a``
+=================================  =============================================================
+
+An estimate comes from the ports ``estimated_state`` ([height, velocity]) and ``covariance``. Its
+covariance keeps the port's name; the state is split into its two components, named after what
+they estimate: the first is the plant's ``head_height_m`` (so truth and estimate compare field for
+field), the second its rate, ``head_velocity_m_s``. Two scalar fields, unlike one 2-vector, can each
+be read as ``TOPIC:FIELD`` (``maskless identify``) and plotted by name in an MCAP viewer.
+
+Versions. Every schema's name carries the format version, ``maskless.Reference.v2``: the schema name
+is what MCAP tools list for a channel, and a schema is written before its channel's first message,
+so even a cut-off file says how to read every message it holds (a file-wide Metadata record would
+say nothing per channel, and a streaming reader would have to meet it first). Version 1 (schema
+names without a version, every file written before versions existed) named the fields differently:
+``reference_m``, the topic ``/plant/head_position`` with ``head_position_m``, estimates'
+``position_m`` and ``velocity_m_s``, and commands' ``current_a`` and ``outlet_current_a``.
+``read_recording`` presents a version-1 file under the current names (``_V1_TOPICS`` and
+``_V1_FIELDS`` are the one table of what changed), and refuses a version it does not know.
 """
 
 from __future__ import annotations
@@ -32,19 +63,24 @@ import numpy as np
 from mcap.exceptions import EndOfFile, McapError
 from mcap.records import Channel as McapChannel
 from mcap.records import Message as McapMessage
+from mcap.records import Schema as McapSchema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, IndexType, Writer
+
+from maskless.errors import MissingFileError, RecordError
 
 __all__ = [
     "COMMAND_TOPIC",
     "FUSION_TOPIC",
-    "HEAD_POSITION_TOPIC",
+    "HEAD_HEIGHT_TOPIC",
     "MESSAGE_ENCODING",
     "REFERENCE_TOPIC",
     "SCHEMA_ENCODING",
+    "SCHEMA_VERSION",
     "Channel",
     "Recording",
     "TruncatedRecordingWarning",
+    "current_name",
     "filter_estimate_topic",
     "read_recording",
     "schema_for_topic",
@@ -57,8 +93,11 @@ SCHEMA_ENCODING = "jsonschema"
 LIBRARY = "maskless"
 PROFILE = ""
 
+# The format version every schema's name ends in (".v2"); a schema name without one is version 1.
+SCHEMA_VERSION = 2
+
 REFERENCE_TOPIC = "/reference"
-HEAD_POSITION_TOPIC = "/plant/head_position"
+HEAD_HEIGHT_TOPIC = "/plant/head_height"
 FUSION_TOPIC = "/fusion/estimate"
 COMMAND_TOPIC = "/controller/command"
 
@@ -69,6 +108,8 @@ _MAGIC = b"\x89MCAP0\r\n"
 _SENSOR_NAME = re.compile(r"[A-Za-z0-9_]+")
 _SENSOR_TOPIC = re.compile(r"/sensors/([A-Za-z0-9_]+)/measurement")
 _FILTER_TOPIC = re.compile(r"/filters/([A-Za-z0-9_]+)/estimate")
+# A maskless schema name: the kind of message, then ".vN" from version 2 on.
+_SCHEMA_NAME = re.compile(r"maskless\.[A-Za-z]+(?:\.v([0-9]+))?")
 
 _NUMBER = "number"
 _BOOLEAN = "boolean"
@@ -90,10 +131,15 @@ _COVARIANCE_SCHEMA: dict[str, Any] = {
 }
 
 
-def _object_schema(title: str, description: str, properties: dict[str, Any]) -> dict[str, Any]:
+def _versioned(kind: str) -> str:
+    """The schema name of a kind of message in this format version, e.g. maskless.Reference.v2."""
+    return f"{kind}.v{SCHEMA_VERSION}"
+
+
+def _object_schema(kind: str, description: str, properties: dict[str, Any]) -> dict[str, Any]:
     """Builds a closed JSON Schema object whose properties are all required."""
     return {
-        "title": title,
+        "title": _versioned(kind),
         "description": description,
         "type": "object",
         "properties": properties,
@@ -105,13 +151,13 @@ def _object_schema(title: str, description: str, properties: dict[str, Any]) -> 
 _SCHEMAS: dict[str, dict[str, Any]] = {
     "maskless.Reference": _object_schema(
         "maskless.Reference",
-        "Head-position set point. Units: metres (m).",
-        {"reference_m": {"type": "number", "description": "set point (m)"}},
+        "Head-height set point. Units: metres (m).",
+        {"reference_head_height_m": {"type": "number", "description": "set point (m)"}},
     ),
-    "maskless.HeadPosition": _object_schema(
-        "maskless.HeadPosition",
-        "True head position from the plant model. Units: metres (m).",
-        {"head_position_m": {"type": "number", "description": "head position (m)"}},
+    "maskless.HeadHeight": _object_schema(
+        "maskless.HeadHeight",
+        "True head height from the plant model. Units: metres (m).",
+        {"head_height_m": {"type": "number", "description": "head height (m)"}},
     ),
     "maskless.DepthMeasurement": _object_schema(
         "maskless.DepthMeasurement",
@@ -126,11 +172,14 @@ _SCHEMAS: dict[str, dict[str, Any]] = {
     ),
     "maskless.StateEstimate": _object_schema(
         "maskless.StateEstimate",
-        "Kalman-filter state estimate. Units: position m, velocity m/s, covariance SI "
+        "Kalman-filter state estimate. Units: height m, velocity m/s, covariance SI "
         "([[m^2, m^2/s], [m^2/s, m^2/s^2]]).",
         {
-            "position_m": {"type": "number", "description": "estimated position (m)"},
-            "velocity_m_s": {"type": "number", "description": "estimated velocity (m/s)"},
+            "head_height_m": {"type": "number", "description": "estimated head height (m)"},
+            "head_velocity_m_s": {
+                "type": "number",
+                "description": "estimated head velocity (m/s)",
+            },
             "covariance": _COVARIANCE_SCHEMA,
         },
     ),
@@ -138,8 +187,11 @@ _SCHEMAS: dict[str, dict[str, Any]] = {
         "maskless.ValveCommand",
         "Proportional-valve commands from the controller. Units: amperes (A).",
         {
-            "current_a": {"type": "number", "description": "inlet valve coil current (A)"},
-            "outlet_current_a": {
+            "inlet_valve_current_a": {
+                "type": "number",
+                "description": "inlet valve coil current (A)",
+            },
+            "outlet_valve_current_a": {
                 "type": "number",
                 "description": "outlet (vacuum) valve coil current (A)",
             },
@@ -149,9 +201,23 @@ _SCHEMAS: dict[str, dict[str, Any]] = {
 
 _FIXED_TOPIC_SCHEMAS: dict[str, str] = {
     REFERENCE_TOPIC: "maskless.Reference",
-    HEAD_POSITION_TOPIC: "maskless.HeadPosition",
+    HEAD_HEIGHT_TOPIC: "maskless.HeadHeight",
     FUSION_TOPIC: "maskless.StateEstimate",
     COMMAND_TOPIC: "maskless.ValveCommand",
+}
+
+# The one table of what version 1 named otherwise: its topics (old -> current), and its fields
+# (old -> current) by the current kind of message holding them, since a kind has the same fields
+# on every topic it serves. Sensor measurements kept their names.
+_V1_TOPICS: dict[str, str] = {"/plant/head_position": HEAD_HEIGHT_TOPIC}
+_V1_FIELDS: dict[str, dict[str, str]] = {
+    "maskless.Reference": {"reference_m": "reference_head_height_m"},
+    "maskless.HeadHeight": {"head_position_m": "head_height_m"},
+    "maskless.StateEstimate": {"position_m": "head_height_m", "velocity_m_s": "head_velocity_m_s"},
+    "maskless.ValveCommand": {
+        "current_a": "inlet_valve_current_a",
+        "outlet_current_a": "outlet_valve_current_a",
+    },
 }
 
 
@@ -192,7 +258,7 @@ def _check_sensor_name(name: str) -> None:
         raise ValueError(f"invalid sensor name {name!r}: use letters, digits and underscores only")
 
 
-def _schema_name_for_topic(topic: str) -> str:
+def _schema_kind_for_topic(topic: str) -> str:
     if topic in _FIXED_TOPIC_SCHEMAS:
         return _FIXED_TOPIC_SCHEMAS[topic]
     if _SENSOR_TOPIC.fullmatch(topic):
@@ -209,14 +275,43 @@ def schema_for_topic(topic: str) -> tuple[str, dict[str, Any]]:
         topic: A topic such as ``REFERENCE_TOPIC`` or ``sensor_measurement_topic("kinect_v1")``.
 
     Returns:
-        ``(schema_name, schema)``, where ``schema`` is a JSON Schema dict (a copy, safe to
-        modify) whose ``description`` gives the units.
+        ``(schema_name, schema)``: the name carries the format version (``maskless.Reference.v2``);
+        ``schema`` is a JSON Schema dict (a copy, safe to modify) whose ``description`` gives the
+        units.
 
     Raises:
         ValueError: If the topic is unknown; the message names the topic.
     """
-    name = _schema_name_for_topic(topic)
-    return name, copy.deepcopy(_SCHEMAS[name])
+    kind = _schema_kind_for_topic(topic)
+    return _versioned(kind), copy.deepcopy(_SCHEMAS[kind])
+
+
+def _v1_renames(topic: str) -> tuple[str, dict[str, str]]:
+    """The current name of a version-1 topic, and its renamed fields (version 1 -> current)."""
+    topic = _V1_TOPICS.get(topic, topic)
+    try:
+        kind = _schema_kind_for_topic(topic)
+    except ValueError:
+        return topic, {}  # not a maskless topic: nothing was renamed
+    return topic, _V1_FIELDS.get(kind, {})
+
+
+def current_name(topic: str, field: str) -> tuple[str, str]:
+    """The current name of a topic and field that may be written with version-1 names.
+
+    Lets a name written against version-1 recordings (say ``/controller/command:current_a``) keep
+    working: ``read_recording`` presents every file under the current names.
+
+    Args:
+        topic: A topic, e.g. ``"/plant/head_position"``.
+        field: A field of it, e.g. ``"head_position_m"``.
+
+    Returns:
+        ``(topic, field)`` under the current names, e.g. ``("/plant/head_height",
+        "head_height_m")``; current (and unknown) names come back unchanged.
+    """
+    topic, renames = _v1_renames(topic)
+    return topic, renames.get(field, field)
 
 
 # eq=False: fields hold arrays, so field-wise == and hashing would fail.
@@ -256,7 +351,7 @@ class Recording:
 
         Args:
             topic: Topic name.
-            field: Field name, e.g. ``"position_m"``.
+            field: Field name, e.g. ``"head_height_m"``.
 
         Returns:
             ``(times_ns, values)``: ``times_ns`` is int64 (ns); ``values`` is float64 for numbers
@@ -595,29 +690,33 @@ def read_recording(
 
     Args:
         path: The MCAP file.
-        topics: Decode only these topics' messages (JSON decoding is most of the reading); the
-            others are listed with no messages. All of them when None.
+        topics: Decode only these topics' messages (JSON decoding is most of the reading), named
+            as the reader presents them (current names); the others are listed with no messages.
+            All of them when None.
 
     Returns:
-        The messages by topic, in file order, with ``log_time`` in simulated ns.
+        The messages by topic, in file order, with ``log_time`` in simulated ns, under the current
+        topic and field names whatever format version wrote them (see the module docstring).
 
     Raises:
-        FileNotFoundError: If the file does not exist.
-        ValueError: If the file is not MCAP (bad magic), or a channel's message encoding is not
-            ``"json"`` (the message names topic and file).
+        MissingFileError: If the file does not exist.
+        RecordError: If the file is not MCAP (bad magic), a channel's message encoding is not
+            ``"json"``, or a schema carries a format version this reader does not know (the
+            message names the file, the topic and the version).
     """
     path = Path(path)
     try:
         data = path.read_bytes()
     except FileNotFoundError as exc:
-        raise FileNotFoundError(errno.ENOENT, "MCAP recording not found", str(path)) from exc
+        raise MissingFileError(errno.ENOENT, "MCAP recording not found", str(path)) from exc
 
     head = data[: len(_MAGIC)]
     if head != _MAGIC[: len(head)]:
-        raise ValueError(f"{path} is not an MCAP file (bad magic bytes {head!r})")
+        raise RecordError(f"{path} is not an MCAP file (bad magic bytes {head!r})")
 
     recording = Recording()
-    channels: dict[int, McapChannel] = {}
+    schemas: dict[int, McapSchema] = {}
+    channels: dict[int, _ReadChannel] = {}
     count = 0
     error: Exception | None = None
     if len(head) < len(_MAGIC):
@@ -638,9 +737,12 @@ def read_recording(
             except _READ_ERRORS as exc:
                 error = exc
                 break
-            if isinstance(record, McapChannel):
-                channels[record.id] = record
-                recording.messages.setdefault(record.topic, [])
+            if isinstance(record, McapSchema):
+                schemas[record.id] = record
+            elif isinstance(record, McapChannel):
+                channel = _read_channel(record, schemas.get(record.schema_id), path)
+                channels[record.id] = channel
+                recording.messages.setdefault(channel.topic, [])
             elif isinstance(record, McapMessage):
                 channel = channels.get(record.channel_id)
                 if topics is None or channel is None or channel.topic in topics:
@@ -659,19 +761,60 @@ def read_recording(
     return recording
 
 
+@dataclass(frozen=True)
+class _ReadChannel:
+    """How the reader presents one channel: its current topic name, its message encoding, and its
+    fields' current names (version-1 name -> current name; empty when nothing was renamed)."""
+
+    topic: str
+    message_encoding: str
+    renames: Mapping[str, str]
+
+
+def _read_channel(channel: McapChannel, schema: McapSchema | None, path: Path) -> _ReadChannel:
+    """Presents a channel under the current names, given the schema its file declared for it.
+
+    Raises:
+        RecordError: If the schema carries a format version this reader does not know.
+    """
+    version = _format_version(schema)
+    if version == 1:
+        topic, renames = _v1_renames(channel.topic)
+    elif version is None or version == SCHEMA_VERSION:
+        topic, renames = channel.topic, {}
+    else:
+        raise RecordError(
+            f"{path}: topic {channel.topic!r} has schema {schema.name!r}, format version "
+            f"{version}; this maskless reads versions 1 to {SCHEMA_VERSION}"
+        )
+    return _ReadChannel(topic, channel.message_encoding, renames)
+
+
+def _format_version(schema: McapSchema | None) -> int | None:
+    """The format version a schema's name carries (1 without ".vN"); None for no schema or one
+    that is not maskless's, whose messages are read as they are."""
+    match = None if schema is None else _SCHEMA_NAME.fullmatch(schema.name)
+    if match is None:
+        return None
+    return 1 if match[1] is None else int(match[1])
+
+
 def _append_message(
     recording: Recording,
-    channels: Mapping[int, McapChannel],
+    channels: Mapping[int, _ReadChannel],
     message: McapMessage,
     path: Path,
 ) -> None:
-    """Decodes one message and appends it to its topic's list."""
+    """Decodes one message and appends it to its topic's list, under the current field names."""
     channel = channels.get(message.channel_id)
     if channel is None:
-        raise ValueError(f"{path}: message refers to unknown channel id {message.channel_id}")
+        raise RecordError(f"{path}: message refers to unknown channel id {message.channel_id}")
     if channel.message_encoding != MESSAGE_ENCODING:
-        raise ValueError(
+        raise RecordError(
             f"{path}: topic {channel.topic!r} has message encoding "
             f"{channel.message_encoding!r}, expected {MESSAGE_ENCODING!r}"
         )
-    recording.messages[channel.topic].append((message.log_time, json.loads(message.data)))
+    payload = json.loads(message.data)
+    if channel.renames:
+        payload = {channel.renames.get(name, name): value for name, value in payload.items()}
+    recording.messages[channel.topic].append((message.log_time, payload))

@@ -35,8 +35,8 @@ from maskless.errors import RecordError
 from maskless.recording import COMMAND_TOPIC, FUSION_TOPIC
 
 # What a maskless recording's input and output are, unless the request says otherwise.
-DEFAULT_MCAP_INPUT = f"{COMMAND_TOPIC}:current_a"
-DEFAULT_MCAP_OUTPUT = f"{FUSION_TOPIC}:position_m"
+DEFAULT_MCAP_INPUT = f"{COMMAND_TOPIC}:inlet_valve_current_a"
+DEFAULT_MCAP_OUTPUT = f"{FUSION_TOPIC}:head_height_m"
 DETREND_MODES = ("mean", "linear", "none")
 # Records at least this long report the optimiser's progress on stderr.
 _PROGRESS_MIN_SAMPLES = 50_000

@@ -1,4 +1,10 @@
-"""A run's logged signals as the channels of its MCAP recording (``maskless.recording``)."""
+"""A run's logged signals as recording channels: which Drake log feeds which MCAP topic and field.
+
+The closed loop logs its exported output ports (``diagrams.closed_loop.export_and_log``) by port
+name; these functions turn those logs, a whole run's or a chunk's, into the ``Channel`` columns
+``maskless.recording`` writes. A field is named after its port (a state estimate's two components
+after what they estimate; see ``maskless.recording``).
+"""
 
 import numpy as np
 
@@ -6,7 +12,7 @@ from maskless.diagrams.closed_loop import Signal
 from maskless.recording import (
     COMMAND_TOPIC,
     FUSION_TOPIC,
-    HEAD_POSITION_TOPIC,
+    HEAD_HEIGHT_TOPIC,
     REFERENCE_TOPIC,
     Channel,
     filter_estimate_topic,
@@ -23,8 +29,8 @@ def _estimate_channel(topic: str, state: Signal, covariance: Signal) -> Channel:
         topic,
         _nanoseconds(state.times_s),
         {
-            "position_m": state.values[0],
-            "velocity_m_s": state.values[1],
+            "head_height_m": state.values[0],
+            "head_velocity_m_s": state.values[1],
             "covariance": covariance.values.T.reshape(-1, 2, 2),
         },
     )
@@ -36,12 +42,12 @@ def signal_channels(s: dict[str, Signal], sensor_names: list[str]) -> list[Chann
         Channel(
             REFERENCE_TOPIC,
             _nanoseconds(s["reference_head_height_m"].times_s),
-            {"reference_m": s["reference_head_height_m"].values[0]},
+            {"reference_head_height_m": s["reference_head_height_m"].values[0]},
         ),
         Channel(
-            HEAD_POSITION_TOPIC,
+            HEAD_HEIGHT_TOPIC,
             _nanoseconds(s["head_height_m"].times_s),
-            {"head_position_m": s["head_height_m"].values[0]},
+            {"head_height_m": s["head_height_m"].values[0]},
         ),
     ]
     for name in sensor_names:
@@ -69,8 +75,8 @@ def signal_channels(s: dict[str, Signal], sensor_names: list[str]) -> list[Chann
             COMMAND_TOPIC,
             _nanoseconds(s["inlet_valve_current_a"].times_s),
             {
-                "current_a": s["inlet_valve_current_a"].values[0],
-                "outlet_current_a": s["outlet_valve_current_a"].values[0],
+                "inlet_valve_current_a": s["inlet_valve_current_a"].values[0],
+                "outlet_valve_current_a": s["outlet_valve_current_a"].values[0],
             },
         )
     )

@@ -22,7 +22,7 @@ def test_simulate_writes_recording_plot_and_json_summary(tmp_path, capsys):
     assert (out / "run.png").stat().st_size > 10_000
     recording = read_recording(out / "run.mcap")
     assert not recording.truncated
-    times, _ = recording.topic_arrays("/plant/head_position", "head_position_m")
+    times, _ = recording.topic_arrays("/plant/head_height", "head_height_m")
     assert times[-1] <= 6e9
 
 

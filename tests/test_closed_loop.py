@@ -11,7 +11,7 @@ from maskless.recording import read_recording, write_recording
 
 TOPICS = {
     "/reference",
-    "/plant/head_position",
+    "/plant/head_height",
     "/controller/command",
     "/fusion/estimate",
     "/sensors/kinect_v1/measurement",
@@ -98,7 +98,7 @@ def test_recording_read_back_with_the_mcap_reader(short_run, tmp_path):
     # The controller period (1/15 s) and the 15 Hz frames set the message counts.
     period_s = short_run.closed_loop.model.sample_period_s
     duration_s = short_run.scenario.duration_s
-    assert counts["/plant/head_position"] == pytest.approx(duration_s / period_s, abs=2)
+    assert counts["/plant/head_height"] == pytest.approx(duration_s / period_s, abs=2)
     assert counts["/sensors/kinect_v1/measurement"] == pytest.approx(
         duration_s * 15, abs=2
     )
@@ -123,10 +123,10 @@ def test_fused_messages_are_eq_10_of_the_local_estimates_with_the_same_stamp(sho
             local = by_time[topic][stamp]
             Y = np.linalg.inv(np.array(local["covariance"]))
             informations.append(Y)
-            weighted.append(Y @ [local["position_m"], local["velocity_m_s"]])
+            weighted.append(Y @ [local["head_height_m"], local["head_velocity_m_s"]])
         P_F = np.linalg.inv(sum(informations))
         np.testing.assert_allclose(
-            [fused["position_m"], fused["velocity_m_s"]], P_F @ sum(weighted), rtol=1e-9
+            [fused["head_height_m"], fused["head_velocity_m_s"]], P_F @ sum(weighted), rtol=1e-9
         )
         np.testing.assert_allclose(fused["covariance"], P_F, rtol=1e-8)
 

@@ -67,7 +67,7 @@ def test_uniform_noise_std_is_a_over_root_3_and_recording_has_simulate_topics(tm
     assert summary["uniform_theoretical_std_ma"] == pytest.approx(50 / math.sqrt(3))
     assert summary["std_ma"] == pytest.approx(50 / math.sqrt(3), rel=0.05)
     recording = read_recording(out / "run.mcap")
-    _, current = recording.topic_arrays("/controller/command", "current_a")
+    _, current = recording.topic_arrays("/controller/command", "inlet_valve_current_a")
     # The log also holds the instant the run ends, when the last sample is still held.
     current = current[: summary["samples"]]
     deviation = current - current.mean()
@@ -86,7 +86,8 @@ def test_excitation_beyond_the_valve_range_is_clipped(tmp_path, capsys):
     args = ["excite", "--signal", "prbs", "--amplitude", "50", "--offset", "150"]
     assert main([*args, "--duration", "30", "--out", str(out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
-    _, current = read_recording(out / "run.mcap").topic_arrays("/controller/command", "current_a")
+    recording = read_recording(out / "run.mcap")
+    _, current = recording.topic_arrays("/controller/command", "inlet_valve_current_a")
     current = current[: summary["samples"]]
     # Half the PRBS's levels (200 mA) exceed the 165 mA saturation and are clipped to it.
     assert current.max() == pytest.approx(0.165)

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import yaml
 from identification_records import PAPER_DATA, paper_record, simulate_record
+from version1_recording import write_version1_recording
 
 from maskless.analysis.identification.model_file import load_identified_model
 from maskless.diagrams.cli import main
@@ -132,6 +133,42 @@ def test_identify_reads_a_maskless_recording(tmp_path, capsys):
     # A --ts that is not the recording's sample period is refused.
     assert main(["identify", "--input", str(out / "run.mcap"), "--ts", "0.1"]) == 2
     assert "0.048 s apart" in capsys.readouterr().err
+
+
+def test_identify_reads_a_version_1_recording_by_its_current_and_its_old_names(tmp_path, capsys):
+    u, y, _, _ = simulate_record(2, "white", 1500)
+    messages = []
+    for k, (u_k, y_k) in enumerate(zip(u, y, strict=True)):
+        stamp = round(k * 0.048e9)
+        command = {"current_a": 0.1 + 0.01 * u_k, "outlet_current_a": 0.0}
+        estimate = {
+            "position_m": 0.7 + 1e-3 * y_k,
+            "velocity_m_s": 0.0,
+            "covariance": [[1, 0], [0, 1]],
+        }
+        messages += [("/controller/command", stamp, command), ("/fusion/estimate", stamp, estimate)]
+    path = str(tmp_path / "v1.mcap")
+    write_version1_recording(path, messages)
+    common = ["--input", path, "--ts", "0.048", "--method", "pem"]
+    by_default = run_json(capsys, *common, "--out", str(tmp_path / "default"))
+    old_names = ["/controller/command:current_a", "/fusion/estimate:position_m"]
+    by_old_names = run_json(
+        capsys,
+        *common,
+        "--input-column",
+        old_names[0],
+        "--output-column",
+        old_names[1],
+        "--out",
+        str(tmp_path / "old"),
+    )
+    for report in (by_default, by_old_names):
+        for model in report["models"]:
+            del model["model_file"]  # in each run's own --out
+    assert by_default["models"] == by_old_names["models"]
+    assert by_default["record"]["samples"] == 1500
+    assert by_default["record"]["units"] == {"input": "A", "output": "m"}
+    assert by_default["verdict"].startswith("The input explains the output")
 
 
 def test_k_step_fit_lies_between_one_step_and_simulation(tmp_path, capsys):

@@ -8,15 +8,18 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
+from version1_recording import write_version1_recording
 
+from maskless.errors import RecordError
 from maskless.recording import (
     COMMAND_TOPIC,
     FUSION_TOPIC,
-    HEAD_POSITION_TOPIC,
+    HEAD_HEIGHT_TOPIC,
     REFERENCE_TOPIC,
     Channel,
     RecordingWriter,
     TruncatedRecordingWarning,
+    current_name,
     filter_estimate_topic,
     read_recording,
     schema_for_topic,
@@ -29,16 +32,16 @@ MAGIC = b"\x89MCAP0\r\n"
 OPCODE_MESSAGE = 0x05  # MCAP spec: Message record opcode
 
 # The data fields of every topic, written out by hand from the brief (not from the module).
-STATE_FIELDS = ("position_m", "velocity_m_s", "covariance")
+STATE_FIELDS = ("head_height_m", "head_velocity_m_s", "covariance")
 EXPECTED_FIELDS = {
-    "/reference": ("reference_m",),
-    "/plant/head_position": ("head_position_m",),
+    "/reference": ("reference_head_height_m",),
+    "/plant/head_height": ("head_height_m",),
     "/sensors/kinect_v1/measurement": ("distance_m", "valid"),
     "/sensors/kinect_v2/measurement": ("distance_m", "valid"),
     "/filters/kinect_v1/estimate": STATE_FIELDS,
     "/filters/kinect_v2/estimate": STATE_FIELDS,
     "/fusion/estimate": STATE_FIELDS,
-    "/controller/command": ("current_a", "outlet_current_a"),
+    "/controller/command": ("inlet_valve_current_a", "outlet_valve_current_a"),
 }
 
 
@@ -56,8 +59,10 @@ def _make_channels(seed=0, scale=1):
 
     n_fast, n_cam = 40 * scale, 12 * scale
     channels = [
-        Channel(REFERENCE_TOPIC, times(n_fast, 10 * ms), {"reference_m": floats(n_fast)}),
-        Channel(HEAD_POSITION_TOPIC, times(n_fast, 10 * ms), {"head_position_m": floats(n_fast)}),
+        Channel(
+            REFERENCE_TOPIC, times(n_fast, 10 * ms), {"reference_head_height_m": floats(n_fast)}
+        ),
+        Channel(HEAD_HEIGHT_TOPIC, times(n_fast, 10 * ms), {"head_height_m": floats(n_fast)}),
     ]
     for k, name in enumerate(SENSORS):
         # kinect_v1 at ~30 Hz, kinect_v2 at ~30 Hz with an offset so log times interleave.
@@ -74,8 +79,8 @@ def _make_channels(seed=0, scale=1):
                 filter_estimate_topic(name),
                 t,
                 {
-                    "position_m": floats(n_cam),
-                    "velocity_m_s": floats(n_cam),
+                    "head_height_m": floats(n_cam),
+                    "head_velocity_m_s": floats(n_cam),
                     "covariance": floats(n_cam, 2, 2),
                 },
             )
@@ -85,8 +90,8 @@ def _make_channels(seed=0, scale=1):
             FUSION_TOPIC,
             times(n_fast, 10 * ms),
             {
-                "position_m": floats(n_fast),
-                "velocity_m_s": floats(n_fast),
+                "head_height_m": floats(n_fast),
+                "head_velocity_m_s": floats(n_fast),
                 "covariance": floats(n_fast, 2, 2),
             },
         )
@@ -95,7 +100,7 @@ def _make_channels(seed=0, scale=1):
         Channel(
             COMMAND_TOPIC,
             times(n_fast, 10 * ms),
-            {"current_a": floats(n_fast), "outlet_current_a": floats(n_fast)},
+            {"inlet_valve_current_a": floats(n_fast), "outlet_valve_current_a": floats(n_fast)},
         )
     )
     return channels
@@ -126,7 +131,7 @@ def test_topic_helpers_and_schemas():
     assert filter_estimate_topic("zed_2") == "/filters/zed_2/estimate"
     assert set(EXPECTED_FIELDS) == {
         REFERENCE_TOPIC,
-        HEAD_POSITION_TOPIC,
+        HEAD_HEIGHT_TOPIC,
         FUSION_TOPIC,
         COMMAND_TOPIC,
         *(sensor_measurement_topic(s) for s in SENSORS),
@@ -140,8 +145,8 @@ def test_topic_helpers_and_schemas():
         assert tuple(schema["required"]) == fields
         assert set(schema["properties"]) == set(fields)
         assert schema["description"]
-    assert schema_for_topic("/sensors/new_cam/measurement")[0] == "maskless.DepthMeasurement"
-    assert schema_for_topic("/filters/new_cam/estimate")[0] == "maskless.StateEstimate"
+    assert schema_for_topic("/sensors/new_cam/measurement")[0] == "maskless.DepthMeasurement.v2"
+    assert schema_for_topic("/filters/new_cam/estimate")[0] == "maskless.StateEstimate.v2"
     with pytest.raises(ValueError, match="/no/such/topic"):
         schema_for_topic("/no/such/topic")
     with pytest.raises(ValueError, match="sensor name"):
@@ -205,11 +210,11 @@ def test_schemas_written_once_and_messages_in_time_order(tmp_path):
         summary = make_reader(f).get_summary()
     # Five kinds for eight topics: shared schemas are not duplicated.
     assert sorted(s.name for s in summary.schemas.values()) == [
-        "maskless.DepthMeasurement",
-        "maskless.HeadPosition",
-        "maskless.Reference",
-        "maskless.StateEstimate",
-        "maskless.ValveCommand",
+        "maskless.DepthMeasurement.v2",
+        "maskless.HeadHeight.v2",
+        "maskless.Reference.v2",
+        "maskless.StateEstimate.v2",
+        "maskless.ValveCommand.v2",
     ]
     file_order = [m.log_time for _, _, m in _upstream_messages(path)]
     assert len(file_order) == sum(len(ch.times_ns) for ch in channels)
@@ -222,23 +227,26 @@ def test_ties_keep_channel_order(tmp_path):
         Channel(
             COMMAND_TOPIC,
             t,
-            {"current_a": np.array([1.0, 2.0, 3.0, 4.0]), "outlet_current_a": np.zeros(4)},
+            {
+                "inlet_valve_current_a": np.array([1.0, 2.0, 3.0, 4.0]),
+                "outlet_valve_current_a": np.zeros(4),
+            },
         ),
-        Channel(REFERENCE_TOPIC, t, {"reference_m": np.array([0.1, 0.2, 0.3, 0.4])}),
+        Channel(REFERENCE_TOPIC, t, {"reference_head_height_m": np.array([0.1, 0.2, 0.3, 0.4])}),
     ]
     path = tmp_path / "ties.mcap"
     write_recording(path, channels)
     got = [(m.log_time, c.topic, json.loads(m.data)) for _, c, m in _upstream_messages(path)]
     cmd, ref = COMMAND_TOPIC, REFERENCE_TOPIC
     assert got == [
-        (0, cmd, {"current_a": 1.0, "outlet_current_a": 0.0}),
-        (0, ref, {"reference_m": 0.1}),
-        (5, cmd, {"current_a": 2.0, "outlet_current_a": 0.0}),
-        (5, cmd, {"current_a": 3.0, "outlet_current_a": 0.0}),
-        (5, ref, {"reference_m": 0.2}),
-        (5, ref, {"reference_m": 0.3}),
-        (9, cmd, {"current_a": 4.0, "outlet_current_a": 0.0}),
-        (9, ref, {"reference_m": 0.4}),
+        (0, cmd, {"inlet_valve_current_a": 1.0, "outlet_valve_current_a": 0.0}),
+        (0, ref, {"reference_head_height_m": 0.1}),
+        (5, cmd, {"inlet_valve_current_a": 2.0, "outlet_valve_current_a": 0.0}),
+        (5, cmd, {"inlet_valve_current_a": 3.0, "outlet_valve_current_a": 0.0}),
+        (5, ref, {"reference_head_height_m": 0.2}),
+        (5, ref, {"reference_head_height_m": 0.3}),
+        (9, cmd, {"inlet_valve_current_a": 4.0, "outlet_valve_current_a": 0.0}),
+        (9, ref, {"reference_head_height_m": 0.4}),
     ]
 
 
@@ -303,9 +311,11 @@ def test_file_cut_inside_magic_is_empty_and_truncated(tmp_path):
 
 def test_wrong_column_length_raises_naming_topic(tmp_path):
     channels = _make_channels()
-    bad = Channel(REFERENCE_TOPIC, np.arange(5, dtype=np.int64), {"reference_m": np.zeros(4)})
+    bad = Channel(
+        REFERENCE_TOPIC, np.arange(5, dtype=np.int64), {"reference_head_height_m": np.zeros(4)}
+    )
     path = tmp_path / "bad.mcap"
-    with pytest.raises(ValueError, match=r"/reference.*reference_m"):
+    with pytest.raises(ValueError, match=r"/reference.*reference_head_height_m"):
         write_recording(path, [*channels[1:], bad])
     assert not path.exists()  # validated before anything is written
 
@@ -315,7 +325,11 @@ def test_wrong_covariance_shape_raises(tmp_path):
     bad = Channel(
         FUSION_TOPIC,
         t,
-        {"position_m": np.zeros(3), "velocity_m_s": np.zeros(3), "covariance": np.zeros((3, 4))},
+        {
+            "head_height_m": np.zeros(3),
+            "head_velocity_m_s": np.zeros(3),
+            "covariance": np.zeros((3, 4)),
+        },
     )
     with pytest.raises(ValueError, match=r"/fusion/estimate.*covariance"):
         write_recording(tmp_path / "bad.mcap", [bad])
@@ -339,14 +353,14 @@ def test_decreasing_times_and_duplicate_topics_raise(tmp_path):
     back = Channel(
         COMMAND_TOPIC,
         np.array([0, 2, 1], dtype=np.int64),
-        {"current_a": np.zeros(3), "outlet_current_a": np.zeros(3)},
+        {"inlet_valve_current_a": np.zeros(3), "outlet_valve_current_a": np.zeros(3)},
     )
     with pytest.raises(ValueError, match=r"/controller/command.*non-decreasing"):
         write_recording(tmp_path / "bad.mcap", [back])
     ok = Channel(
         COMMAND_TOPIC,
         np.array([0, 1], dtype=np.int64),
-        {"current_a": np.zeros(2), "outlet_current_a": np.zeros(2)},
+        {"inlet_valve_current_a": np.zeros(2), "outlet_valve_current_a": np.zeros(2)},
     )
     with pytest.raises(ValueError, match=r"/controller/command.*more than once"):
         write_recording(tmp_path / "bad.mcap", [ok, ok])
@@ -383,7 +397,7 @@ def test_payload_bytes_are_compact_json_dumps(tmp_path, with_nan):
     channels = _make_channels(seed=5)
     edge = np.array([0.1, -0.0, 1e16, 5e-324, 1.7976931348623157e308, np.nan if with_nan else 2.5])
     channels[0] = Channel(
-        REFERENCE_TOPIC, np.arange(edge.size, dtype=np.int64), {"reference_m": edge}
+        REFERENCE_TOPIC, np.arange(edge.size, dtype=np.int64), {"reference_head_height_m": edge}
     )
     path = tmp_path / "edge.mcap"
     write_recording(path, channels)
@@ -449,3 +463,142 @@ def test_reading_some_topics_decodes_only_those(tmp_path):
     for topic, messages in some.messages.items():
         expected = whole.messages[topic] if topic in (FUSION_TOPIC, COMMAND_TOPIC) else []
         assert messages == expected
+
+
+# A version-1 file (the old names, written by the test's own writer) and what it reads as: the
+# current names, both written out by hand.
+_P = [[1e-6, 2e-7], [2e-7, 4e-4]]
+VERSION_1_MESSAGES = [
+    ("/reference", 0, {"reference_m": 0.7}),
+    ("/plant/head_position", 0, {"head_position_m": 0.69}),
+    ("/sensors/kinect_v1/measurement", 0, {"distance_m": 0.51, "valid": True}),
+    (
+        "/filters/kinect_v1/estimate",
+        0,
+        {"position_m": 0.68, "velocity_m_s": -0.01, "covariance": _P},
+    ),
+    ("/fusion/estimate", 0, {"position_m": 0.685, "velocity_m_s": -0.02, "covariance": _P}),
+    ("/controller/command", 0, {"current_a": 0.12, "outlet_current_a": 0.0}),
+    ("/reference", 5, {"reference_m": 0.75}),
+    ("/plant/head_position", 5, {"head_position_m": 0.7}),
+    ("/sensors/kinect_v1/measurement", 5, {"distance_m": 0.0, "valid": False}),
+    (
+        "/filters/kinect_v1/estimate",
+        5,
+        {"position_m": 0.69, "velocity_m_s": 0.03, "covariance": _P},
+    ),
+    ("/fusion/estimate", 5, {"position_m": 0.695, "velocity_m_s": 0.04, "covariance": _P}),
+    ("/controller/command", 5, {"current_a": 0.13, "outlet_current_a": 0.02}),
+]
+VERSION_1_AS_CURRENT = {
+    "/reference": [(0, {"reference_head_height_m": 0.7}), (5, {"reference_head_height_m": 0.75})],
+    "/plant/head_height": [(0, {"head_height_m": 0.69}), (5, {"head_height_m": 0.7})],
+    "/sensors/kinect_v1/measurement": [
+        (0, {"distance_m": 0.51, "valid": True}),
+        (5, {"distance_m": 0.0, "valid": False}),
+    ],
+    "/filters/kinect_v1/estimate": [
+        (0, {"head_height_m": 0.68, "head_velocity_m_s": -0.01, "covariance": _P}),
+        (5, {"head_height_m": 0.69, "head_velocity_m_s": 0.03, "covariance": _P}),
+    ],
+    "/fusion/estimate": [
+        (0, {"head_height_m": 0.685, "head_velocity_m_s": -0.02, "covariance": _P}),
+        (5, {"head_height_m": 0.695, "head_velocity_m_s": 0.04, "covariance": _P}),
+    ],
+    "/controller/command": [
+        (0, {"inlet_valve_current_a": 0.12, "outlet_valve_current_a": 0.0}),
+        (5, {"inlet_valve_current_a": 0.13, "outlet_valve_current_a": 0.02}),
+    ],
+}
+
+
+def test_a_version_1_file_reads_under_the_current_names(tmp_path):
+    path = tmp_path / "v1.mcap"
+    write_version1_recording(path, VERSION_1_MESSAGES)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        recording = read_recording(path)
+    assert recording.messages == VERSION_1_AS_CURRENT
+    # Payload keys come in the order they were written, renamed.
+    assert list(recording.messages[FUSION_TOPIC][0][1]) == list(STATE_FIELDS)
+    times, height = recording.topic_arrays(HEAD_HEIGHT_TOPIC, "head_height_m")
+    np.testing.assert_array_equal(times, [0, 5])
+    np.testing.assert_array_equal(height, [0.69, 0.7])
+    _, covariance = recording.topic_arrays(FUSION_TOPIC, "covariance")
+    assert covariance.shape == (2, 2, 2)
+    # Topics to decode are named as the reader presents them.
+    some = read_recording(path, topics={HEAD_HEIGHT_TOPIC})
+    assert some.messages[HEAD_HEIGHT_TOPIC] == VERSION_1_AS_CURRENT[HEAD_HEIGHT_TOPIC]
+    assert some.messages[COMMAND_TOPIC] == []
+
+
+def test_a_cut_off_version_1_file_reads_up_to_the_cut_under_the_current_names(tmp_path):
+    full = tmp_path / "v1.mcap"
+    write_version1_recording(full, VERSION_1_MESSAGES)
+    data = full.read_bytes()
+    cut = tmp_path / "v1_cut.mcap"
+    cut.write_bytes(data[: _message_record_ends(data)[-1] - 1])
+    with pytest.warns(TruncatedRecordingWarning, match=r"v1_cut\.mcap.* 11 "):
+        recording = read_recording(cut)
+    expected = {topic: list(messages) for topic, messages in VERSION_1_AS_CURRENT.items()}
+    expected[COMMAND_TOPIC] = expected[COMMAND_TOPIC][:1]
+    assert recording.messages == expected
+
+
+def test_version_1_names_map_to_the_current_ones():
+    assert current_name("/controller/command", "current_a") == (
+        COMMAND_TOPIC,
+        "inlet_valve_current_a",
+    )
+    assert current_name("/plant/head_position", "head_position_m") == (
+        HEAD_HEIGHT_TOPIC,
+        "head_height_m",
+    )
+    assert current_name("/filters/kinect_v2/estimate", "velocity_m_s") == (
+        filter_estimate_topic("kinect_v2"),
+        "head_velocity_m_s",
+    )
+    # Current, unchanged and unknown names come back as they are.
+    for name in (
+        (FUSION_TOPIC, "head_height_m"),
+        (sensor_measurement_topic("kinect_v1"), "valid"),
+        ("/no/such/topic", "current_a"),
+    ):
+        assert current_name(*name) == name
+
+
+def test_every_schema_carries_the_format_version(tmp_path):
+    path = tmp_path / "run.mcap"
+    write_recording(path, _make_channels())
+    with open(path, "rb") as stream:
+        schemas = make_reader(stream).get_summary().schemas.values()
+    assert schemas and all(schema.name.endswith(".v2") for schema in schemas)
+    assert all(json.loads(schema.data)["title"] == schema.name for schema in schemas)
+
+
+def _write_with_schema(path, topic, schema_name, payload):
+    with open(path, "wb") as stream:
+        writer = Writer(stream)
+        writer.start()
+        schema_id = writer.register_schema(schema_name, "jsonschema", b"{}")
+        channel_id = writer.register_channel(topic, "json", schema_id)
+        writer.add_message(
+            channel_id, log_time=1, data=json.dumps(payload).encode(), publish_time=1
+        )
+        writer.finish()
+
+
+def test_an_unknown_format_version_is_refused_naming_file_topic_and_version(tmp_path):
+    path = tmp_path / "future.mcap"
+    payload = {"inlet_valve_current_a": 0.1, "outlet_valve_current_a": 0.0, "valve_id": 3}
+    _write_with_schema(path, COMMAND_TOPIC, "maskless.ValveCommand.v3", payload)
+    with pytest.raises(
+        RecordError, match=r"future\.mcap: topic '/controller/command' .*format version 3"
+    ):
+        read_recording(path)
+
+
+def test_a_schema_that_is_not_maskless_reads_as_it_is(tmp_path):
+    path = tmp_path / "other.mcap"
+    _write_with_schema(path, "/imu", "vendor.Imu", {"current_a": 1.5})
+    assert read_recording(path).messages == {"/imu": [(1, {"current_a": 1.5})]}

@@ -13,7 +13,7 @@ import numpy as np
 import scipy.signal
 
 from maskless.errors import MissingFileError, RecordError
-from maskless.recording import read_recording
+from maskless.recording import current_name, read_recording
 
 
 def read_csv_signal(path: str | Path, column: str | None = None) -> np.ndarray:
@@ -82,14 +82,16 @@ def read_mcap_signals(
 
     Args:
         path: the recording.
-        topics_and_fields: each "TOPIC:FIELD", e.g. "/controller/command:current_a".
+        topics_and_fields: each "TOPIC:FIELD", e.g. "/controller/command:inlet_valve_current_a";
+            the version-1 names (say "/controller/command:current_a") are accepted too.
     """
     wanted = []
     for topic_and_field in topics_and_fields:
         topic, separator, field = topic_and_field.rpartition(":")
         if not separator or not topic or not field:
             raise RecordError(f"{path}: {topic_and_field!r} should be TOPIC:FIELD")
-        wanted.append((topic, field))
+        # The recording is read under the current names, whatever version wrote it.
+        wanted.append(current_name(topic, field))
     try:
         recording = read_recording(path, topics={topic for topic, _ in wanted})
     except ValueError as error:

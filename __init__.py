@@ -1,1 +1,75 @@
-"""maskless: simulate, identify and control a soft-robot head positioner."""
+"""maskless: simulate, identify and control a soft-robot head positioner for mask-free head-and-neck
+radiotherapy, as Drake diagrams.
+
+The public API, one import away::
+
+    import maskless
+
+    scenario = maskless.load_scenario()  # the shipped defaults; or a YAML file over them
+    run = maskless.simulate(scenario)
+    run.metrics["tracking"]["p95_abs_error_mm"], run.signals["head_height_m"]
+    run.write_mcap("out/run.mcap"), run.plot("out/run.png")
+
+Every command of the ``maskless`` CLI is one call here: ``simulate`` (`maskless simulate`),
+``excite`` (`maskless excite`), ``identify_record`` (`maskless identify`),
+``analyze_operating_range`` and ``analyze_stability`` (`maskless analyze`) and ``run_workflow``
+(`maskless workflow`). Errors a user can cause are ``MasklessError``s that name the file, field
+or argument at fault.
+
+Names are imported when first used, so ``import maskless`` stays cheap.
+"""
+
+import importlib
+
+# Public name -> the module that defines it.
+_EXPORTS = {
+    # scenarios
+    "Scenario": "maskless.diagrams.scenario",
+    "load_scenario": "maskless.diagrams.scenario",
+    "PneumaticPlant": "maskless.diagrams.scenario",
+    "PaperPlant": "maskless.diagrams.scenario",
+    "IdentifiedPlant": "maskless.diagrams.scenario",
+    "OffsetFreeLqg": "maskless.diagrams.scenario",
+    "PaperLqg": "maskless.diagrams.scenario",
+    "KinectV1Config": "maskless.systems.sensing.depth_sensor",
+    "KinectV2Config": "maskless.systems.sensing.depth_sensor",
+    # running
+    "build_closed_loop": "maskless.diagrams.closed_loop",
+    "simulate": "maskless.diagrams.simulation",
+    "SimulationRun": "maskless.diagrams.simulation",
+    "excite": "maskless.diagrams.excitation_run",
+    "ExcitationRequest": "maskless.diagrams.excitation_run",
+    # identification and design
+    "identify": "maskless.diagrams.identification_run",
+    "identify_record": "maskless.diagrams.identification_run",
+    "IdentificationRequest": "maskless.diagrams.identification_run",
+    "design_controller": "maskless.diagrams.controller_design",
+    # analysis
+    "analyze_operating_range": "maskless.diagrams.plant_analysis",
+    "analyze_stability": "maskless.diagrams.plant_analysis",
+    "StabilityRequest": "maskless.diagrams.plant_analysis",
+    "run_workflow": "maskless.diagrams.workflow",
+    # recordings
+    "read_recording": "maskless.recording",
+    # errors
+    "MasklessError": "maskless.errors",
+    "ConfigError": "maskless.errors",
+    "RecordError": "maskless.errors",
+    "ModelError": "maskless.errors",
+    "MissingFileError": "maskless.errors",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    """Imports a public name's module on first use (PEP 562)."""
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'maskless' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_EXPORTS})

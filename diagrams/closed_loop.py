@@ -101,7 +101,7 @@ class AddedPlant:
     """An added plant's ports and what the controller design needs from it."""
 
     inlet: InputPort
-    outlet: InputPort | None
+    outlet: InputPort
     head_height: OutputPort
     start_height_m: float
     model: IdentifiedModel | None = None
@@ -198,7 +198,7 @@ def add_plant(
     )
     return AddedPlant(
         inlet=plant.inputs["inlet_valve_current_a"],
-        outlet=None,
+        outlet=plant.inputs["outlet_valve_current_a"],
         head_height=plant.outputs["head_height_m"],
         start_height_m=operating_head_height_m(model, camera_height_m),
         model=model,
@@ -447,8 +447,7 @@ def assemble_loop(
     filters and fusion watching the head (and feeding the controller, if any), every output
     exported and logged, the Diagram built and named."""
     builder.Connect(drive.inlet, plant.inlet)
-    if plant.outlet is not None:
-        builder.Connect(drive.outlet, plant.outlet)
+    builder.Connect(drive.outlet, plant.outlet)
     sensing = add_sensing_chain(builder, config, plant.head_height, plant.start_height_m)
     if drive.controller is not None:
         controller = drive.controller

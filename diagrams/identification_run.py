@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from maskless.analysis.identification import report as identification_report
 from maskless.analysis.identification.model_file import model_file_contents
 from maskless.analysis.identification.plots import plot_compare, plot_residuals
 from maskless.analysis.identification.records import (
@@ -23,12 +24,7 @@ from maskless.analysis.identification.records import (
     read_csv_signal,
     read_mcap_signals,
 )
-from maskless.analysis.identification.report import (
-    METHODS,
-    FittedModel,
-    Part,
-    identify,
-)
+from maskless.analysis.identification.report import METHODS, FittedModel, Part
 from maskless.analysis.identification.subspace import default_horizon
 from maskless.diagrams.background import BackgroundTask
 from maskless.errors import RecordError
@@ -54,7 +50,7 @@ class IdentificationRequest:
 
     Attributes:
         input: the input record: a CSV file (one value per line, or a column) or a maskless MCAP
-            recording.
+            recording; None when the signals are given as arrays (``identify``).
         output: the output record; None when ``input`` is an MCAP recording holding both.
         ts: the sample period (s).
         orders: the model orders to fit.
@@ -72,7 +68,7 @@ class IdentificationRequest:
         labels: field -> what the user calls it (a flag), for messages.
     """
 
-    input: Path
+    input: Path | None
     ts: float
     output: Path | None = None
     orders: tuple[int, ...] = (2,)
@@ -89,7 +85,8 @@ class IdentificationRequest:
     labels: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
-        object.__setattr__(self, "input", Path(self.input))
+        if self.input is not None:
+            object.__setattr__(self, "input", Path(self.input))
         if self.output is not None:
             object.__setattr__(self, "output", Path(self.output))
         object.__setattr__(self, "orders", tuple(self.orders))
@@ -140,6 +137,11 @@ class IdentificationRun:
     parts: list[Part]
     offsets: Detrended
     units: tuple[str, str]
+
+    @property
+    def model(self):
+        """The fitted model of the first (or only) order asked for."""
+        return self.fitted_models[0].model
 
 
 def _field_unit(topic_and_field: str) -> str:
@@ -213,12 +215,52 @@ def identify_record(request: IdentificationRequest) -> "IdentificationRun":
     Raises:
         RecordError: a record that cannot be read or used as asked, naming the file and field.
     """
+    if request.input is None:
+        raise RecordError(f"{request.label('input')}: expected the record to read")
+    u, y, units = read_record(request)
+    return identify_signals(u, y, request, units)
+
+
+def identify(
+    u, y, sample_period_s: float, order: int = 2, method: str = "pem", **options
+) -> "IdentificationRun":
+    """Identifies a model of ``y`` from ``u``, judged as `maskless identify` judges it.
+
+    Args:
+        u: the input samples (say a valve current, A).
+        y: the output samples (say the head height, m), one per input sample.
+        sample_period_s: the samples' period (s).
+        order: the model order.
+        method: "pem", "armax", "arx" or "n4sid".
+        **options: any other ``IdentificationRequest`` field (``estimation="0:0.6"``,
+            ``detrend="mean"``, ``input_unit="A"``, ...).
+
+    Returns:
+        The run: ``.model`` the fitted model, ``.report`` its figures, baselines and verdict.
+    """
+    request = IdentificationRequest(
+        input=None, ts=sample_period_s, orders=(order,), method=method, **options
+    )
+    u, y = np.asarray(u, dtype=float), np.asarray(y, dtype=float)
+    if u.shape != y.shape or u.ndim != 1:
+        raise RecordError(
+            f"u and y: expected two 1-D arrays of one length, got shapes {u.shape} and {y.shape}"
+        )
+    if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
+        raise RecordError("u and y: expected finite numbers only")
+    return identify_signals(u, y, request, ("unknown", "unknown"))
+
+
+def identify_signals(
+    u: np.ndarray, y: np.ndarray, request: IdentificationRequest, units: tuple[str, str]
+) -> "IdentificationRun":
+    """``identify_record`` on signals already read (``units``: as read, before the request's)."""
     label = request.label
     orders = list(request.orders)
-    u, y, units = read_record(request)
     units = (request.input_unit or units[0], request.output_unit or units[1])
     if np.ptp(u) == 0:
-        raise RecordError(f"{request.input}: the input is constant, so it explains nothing to fit")
+        source = request.input or "u"
+        raise RecordError(f"{source}: the input is constant, so it explains nothing to fit")
     estimation_slice = parse_range(request.estimation, y.size, label("estimation"))
     validation_slice = parse_range(request.validation, y.size, label("validation"))
     needed = minimum_samples(orders, request.method)
@@ -244,7 +286,7 @@ def identify_record(request: IdentificationRequest) -> "IdentificationRun":
         print(f"fitting: {evaluations} evaluations, cost {cost:.6g}", file=sys.stderr, flush=True)
 
     long_record = parts[0].y.size >= _PROGRESS_MIN_SAMPLES
-    report, fitted_models = identify(
+    report, fitted_models = identification_report.identify(
         request.method,
         parts[0],
         parts[1],

@@ -25,7 +25,8 @@ def plant(model):
 
 def test_ports(plant):
     assert plant.get_name() == "linear_model_plant"
-    assert port_layout(plant) == ({"inlet_valve_current_a": 1}, {"head_height_m": 1})
+    inputs = {"inlet_valve_current_a": 1, "outlet_valve_current_a": 1}
+    assert port_layout(plant) == (inputs, {"head_height_m": 1})
 
 
 def eq_25_step_mm(x_mm, current_ma):
@@ -44,6 +45,7 @@ def test_one_step_matches_eq_25(plant, x_mm, current_ma):
     context = plant.CreateDefaultContext()
     context.SetDiscreteState(np.array(x_mm) / 1000.0)
     plant.GetInputPort("inlet_valve_current_a").FixValue(context, [current_ma / 1000.0])
+    plant.GetInputPort("outlet_valve_current_a").FixValue(context, [0.0])
     # Output: head height = camera height - (operating distance + C x), Eq. 26 with C = [1 0].
     expected_height = CAMERA_HEIGHT_M - (692.357479 + x_mm[0]) / 1000.0
     assert plant.GetOutputPort("head_height_m").Eval(context)[0] == pytest.approx(expected_height)
@@ -63,6 +65,7 @@ def test_default_state_is_the_operating_point(plant, model):
 def test_linearize_recovers_the_model_and_autodiff_works(plant, model):
     context = plant.CreateDefaultContext()
     plant.GetInputPort("inlet_valve_current_a").FixValue(context, [model.operating_input_a])
+    plant.GetInputPort("outlet_valve_current_a").FixValue(context, [0.0])
     linear = Linearize(
         plant,
         context,
@@ -73,3 +76,15 @@ def test_linearize_recovers_the_model_and_autodiff_works(plant, model):
     np.testing.assert_allclose(linear.B(), model.B, rtol=1e-12)
     np.testing.assert_allclose(linear.C(), -model.C)  # height falls as distance grows
     assert plant.ToAutoDiffXd() is not None
+
+
+def test_the_outlet_port_is_read_by_nothing(plant):
+    # The paper's model was identified from the inlet alone: the outlet cannot move its head.
+    updates = []
+    for outlet_a in (0.0, 0.165):
+        context = plant.CreateDefaultContext()
+        context.SetDiscreteState(np.array([0.001, -0.002]))
+        plant.GetInputPort("inlet_valve_current_a").FixValue(context, [0.1])
+        plant.GetInputPort("outlet_valve_current_a").FixValue(context, [outlet_a])
+        updates.append(plant.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector())
+    np.testing.assert_array_equal(updates[0], updates[1])

@@ -38,6 +38,7 @@ def add_linear_model_plant(
         name: linear_model_plant
         input_ports:
         - inlet_valve_current_a
+        - outlet_valve_current_a
         output_ports:
         - head_height_m
 
@@ -51,7 +52,9 @@ def add_linear_model_plant(
         valve_saturation_current_a: the current is clipped here (A).
         name: the system's name.
 
-    The model state starts at zero: the head at the operating point, at rest.
+    The model state starts at zero: the head at the operating point, at rest. Every plant has
+    the same ports; a model identified from the inlet alone has no outlet, so its
+    ``outlet_valve_current_a`` is read by nothing.
     """
     n = model.A.shape[0]
     x = MakeVectorVariable(n, "x")
@@ -63,7 +66,10 @@ def add_linear_model_plant(
     return add_named_symbolic_system(
         builder,
         name,
-        inputs=[("inlet_valve_current_a", [current])],
+        inputs=[
+            ("inlet_valve_current_a", [current]),
+            ("outlet_valve_current_a", [Variable("outlet_valve_current_a")]),
+        ],
         outputs=[("head_height_m", [height])],
         state=list(x),
         dynamics=list(next_x),

@@ -177,14 +177,18 @@ def _check_scalar_type(value, annotation, filename: str, dotted_name: str) -> No
 
 
 def find_unset_fields(config, prefix: str = "") -> list[str]:
-    """Dotted names of float fields still at ``UNSET`` (NaN) anywhere in a dataclass tree."""
+    """Dotted names of float fields still at ``UNSET`` (NaN) anywhere in a dataclass tree (mapping
+    values included)."""
     unset = []
     for field in dataclasses.fields(config):
         value = getattr(config, field.name)
-        if dataclasses.is_dataclass(value):
-            unset += find_unset_fields(value, f"{prefix}{field.name}.")
-        elif isinstance(value, float) and math.isnan(value):
-            unset.append(f"{prefix}{field.name}")
+        items = value.items() if isinstance(value, dict) else [(None, value)]
+        for key, item in items:
+            name = f"{prefix}{field.name}" + ("" if key is None else f".{key}")
+            if dataclasses.is_dataclass(item):
+                unset += find_unset_fields(item, f"{name}.")
+            elif isinstance(item, float) and math.isnan(item):
+                unset.append(name)
     return unset
 
 

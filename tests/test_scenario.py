@@ -1,7 +1,18 @@
+import numpy as np
 import pytest
+import yaml
 
-from maskless.diagrams.scenario import load_scenario
+from maskless.diagrams.scenario import (
+    IdentifiedPlant,
+    controller_from_shorthand,
+    load_scenario,
+    plant_from_shorthand,
+    shorthand,
+)
+from maskless.diagrams.simulation import simulate
 from maskless.errors import ConfigError
+from maskless.recording import read_recording
+from maskless.systems.sensing.depth_sensor import KinectV2Config
 
 
 def test_shipped_defaults_are_complete_and_valid(config):
@@ -50,3 +61,126 @@ def test_bad_user_file_is_refused_naming_file_and_field(tmp_path, text, message)
     with pytest.raises(ConfigError, match=message) as raised:
         load_scenario(path)
     assert "user.yaml" in str(raised.value)
+
+
+THIRD_CAMERA = """
+cameras:
+  kinect_v3: !KinectV2Config
+    mount_height_m: 0.95
+    frame_rate_hz: 15.0
+    latency_s: 0.0667
+    dropout_probability: 0.0
+    incidence_angle_rad: 0.3
+    min_range_m: 0.5
+    max_range_m: 4.5
+    offset_m: 0.0
+    warmup_drift_m: 0.0
+    warmup_time_constant_s: 300.0
+    warmup_elapsed_s: 1200.0
+    resolution_m: 0.001
+"""
+
+
+def test_a_third_camera_is_one_yaml_entry_and_is_fused_with_the_others(tmp_path):
+    path = tmp_path / "three.yaml"
+    path.write_text(THIRD_CAMERA + "duration_s: 5.0\n")
+    scenario = load_scenario(path)
+    assert list(scenario.cameras) == ["kinect_v1", "kinect_v2", "kinect_v3"]
+    assert isinstance(scenario.cameras["kinect_v2"], KinectV2Config)  # untouched entries kept
+    run = simulate(scenario)
+    assert run.signals["kinect_v3.valid"].values[0].mean() > 0.9
+    # Eq. 10 over all three tracks: the fused information is the sum of the local ones.
+    local = [run.signals[f"kinect_v{k}_filter.covariance"].values[:, -1] for k in (1, 2, 3)]
+    information = sum(np.linalg.inv(P.reshape(2, 2)) for P in local)
+    fused = run.signals["fusion.covariance"].values[:, -1].reshape(2, 2)
+    np.testing.assert_allclose(fused, np.linalg.inv(information), rtol=1e-9)
+    recording = read_recording(run.write_mcap(tmp_path / "run.mcap"))
+    assert "/sensors/kinect_v3/measurement" in recording.messages
+    assert "/filters/kinect_v3/estimate" in recording.messages
+
+
+def write_first_order_model(path):
+    """A first-order model of the head height (m) from the inlet current (A), as `maskless
+    identify` writes one: DC gain 0.1 m/A about 0.2 m and 0.1 A."""
+    contents = {
+        "A": [[0.98]],
+        "B": [[0.002]],
+        "C": [[1.0]],
+        "D": [[0.0]],
+        "K": [[0.5]],
+        "sample_period_s": 1.0 / 15.0,
+        "input": {"unit": "A", "offset": 0.1},
+        "output": {"unit": "m", "offset": 0.2},
+    }
+    path.write_text(yaml.safe_dump(contents))
+    return path
+
+
+def test_a_tagged_identified_plant_runs_that_model(tmp_path):
+    model = write_first_order_model(tmp_path / "model.yaml")
+    path = tmp_path / "identified.yaml"
+    path.write_text(f"plant: !IdentifiedPlant {{model_file: {model}}}\nduration_s: 30.0\n")
+    scenario = load_scenario(path)
+    assert scenario.plant == IdentifiedPlant(model_file=str(model))
+    run = simulate(scenario)
+    assert run.closed_loop.plant == "identified"
+    head = run.signals["head_height_m"].values[0] - 0.2
+    inlet = run.signals["inlet_valve_current_a"].values[0] - 0.1
+    # The logs obey the model file's own equation, x+ = 0.98 x + 0.002 u (deviations, m and A),
+    # tick by tick, and the offset-free LQG holds the head at the 5 mm step.
+    np.testing.assert_allclose(head[1:], 0.98 * head[:-1] + 0.002 * inlet[:-1], atol=1e-15)
+    settled = run.signals["head_height_m"].times_s > 20.0
+    assert head[settled].mean() == pytest.approx(0.005, abs=3e-4)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("plant: !IdentifedPlant {model_file: m.yaml}\n", r"'plant' has the tag !IdentifedPlant; "
+         r"expected one of !PneumaticPlant, !PaperPlant, !IdentifiedPlant"),
+        ("plant: identified:m.yaml\n", r"field 'plant' = 'identified:m.yaml': expected a mapping "
+         r"tagged with one of"),
+        ("plant: !IdentifiedPlant {model: m.yaml}\n", r"unknown field 'plant\.model' \(did you "
+         r"mean 'plant\.model_file'\?\)"),
+        ("cameras:\n  kinect_v1: !KinectV3Config {}\n", r"'cameras\.kinect_v1' has the tag "
+         r"!KinectV3Config"),
+        ("duration_s: !Seconds 3\n", r"'duration_s' has the tag !Seconds, but takes no tag"),
+        ("plant: !IdentifiedPlant {model_file: none.yaml}\n", r"plant\.model_file = 'none\.yaml': "
+         r"model file not found"),
+        ("cameras:\n  kinect_v3: !KinectV1Config {frame_rate_hz: 15.0}\n",
+         r"fields not set: cameras\.kinect_v3\.mount_height_m"),
+        ("controller: !PaperLqg {camera: kinect_v9}\n", r"controller\.camera = 'kinect_v9'"),
+    ],
+)
+def test_a_malformed_tag_or_choice_is_refused_naming_file_and_field(tmp_path, text, message):
+    path = tmp_path / "tagged.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=message) as raised:
+        load_scenario(path)
+    assert "tagged.yaml" in str(raised.value)
+
+
+def test_an_untagged_override_keeps_the_camera_model_it_overrides(tmp_path):
+    # yaml_load_typed alone would read an untagged entry as the Union's first type (Kinect v1).
+    path = tmp_path / "v2.yaml"
+    path.write_text("cameras:\n  kinect_v2:\n    latency_s: 0.1333\n")
+    camera = load_scenario(path).cameras["kinect_v2"]
+    assert isinstance(camera, KinectV2Config) and camera.latency_s == 0.1333
+    assert camera.resolution_m == 0.001
+
+
+@pytest.mark.parametrize("text", ["pneumatic", "paper", "identified:m.yaml"])
+def test_plant_shorthands_round_trip(text):
+    assert shorthand(plant_from_shorthand(text)) == text
+
+
+@pytest.mark.parametrize("text", ["offset-free-lqg", "offset-free-lqg:m.yaml", "paper-lqg"])
+def test_controller_shorthands_round_trip(text):
+    assert shorthand(controller_from_shorthand(text)) == text
+
+
+def test_an_override_that_breaks_the_scenario_names_the_override():
+    with pytest.raises(ConfigError, match=r"overrides \(duration_s\): duration_s = -1"):
+        load_scenario(duration_s=-1.0)
+    with pytest.raises(ConfigError, match="unknown scenario field 'duration'"):
+        load_scenario(duration=3.0)

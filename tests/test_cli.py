@@ -1,85 +1,53 @@
-import json
+"""The CLI's own pieces: one parser per command, built lazily, and flags turned into a scenario
+that names only the flags given."""
+
+import argparse
+import sys
 
 import pytest
 
-from maskless.diagrams.cli import main
-from maskless.diagrams.scenario import (
-    controller_from_shorthand,
-    load_scenario,
-    plant_from_shorthand,
-)
-from maskless.diagrams.simulation import simulate
-from maskless.recording import read_recording, write_recording
+from maskless.diagrams.cli import build_parser, scenario_from_flags
+from maskless.diagrams.scenario import IdentifiedPlant, PaperLqg
+from maskless.errors import ConfigError
 
 
-def test_simulate_writes_recording_plot_and_json_summary(tmp_path, capsys):
-    out = tmp_path / "out"
-    assert main(["simulate", "--duration", "6", "--seed", "2", "--out", str(out), "--json"]) == 0
-    summary = json.loads(capsys.readouterr().out)
-    assert summary["duration_s"] == 6.0 and summary["random_seed"] == 2
-    assert {"tracking", "estimation", "offset_free_lqg", "timing", "files"} <= summary.keys()
-    assert (summary["plant"], summary["controller"]) == ("pneumatic", "offset-free-lqg")
-    assert (out / "run.png").stat().st_size > 10_000
-    recording = read_recording(out / "run.mcap")
-    assert not recording.truncated
-    times, _ = recording.topic_arrays("/plant/head_height", "head_height_m")
-    assert times[-1] <= 6e9
+def test_only_the_chosen_command_module_is_imported():
+    for name in list(sys.modules):
+        if name.startswith("maskless.diagrams.commands."):
+            del sys.modules[name]
+    build_parser(["simulate", "--help"])
+    loaded = {name for name in sys.modules if name.startswith("maskless.diagrams.commands.")}
+    assert loaded == {"maskless.diagrams.commands.simulate"}
 
 
-def test_simulate_prints_a_human_summary(tmp_path, capsys):
-    assert main(["simulate", "--duration", "3", "--out", str(tmp_path)]) == 0
-    text = capsys.readouterr().out
-    assert "Tracking" in text and "fused" in text and "run.mcap" in text
+def test_every_command_has_its_parser():
+    for command in ("simulate", "excite", "identify", "analyze", "workflow"):
+        parser = build_parser([command])
+        with pytest.raises(SystemExit):
+            parser.parse_args([command, "--help"])
 
 
-def test_paper_flags_reproduce_the_paper_loop(tmp_path, capsys):
-    args = ["simulate", "--duration", "3", "--out", str(tmp_path), "--json"]
-    assert main([*args, "--plant", "paper", "--controller", "paper-lqg"]) == 0
-    summary = json.loads(capsys.readouterr().out)
-    assert (summary["plant"], summary["controller"]) == ("paper", "paper-lqg")
-    assert "paper_model" in summary
+def flags(**values):
+    defaults = {"config": None, "duration": None, "seed": None, "plant": None, "controller": None}
+    return argparse.Namespace(**{**defaults, **values})
 
 
-def test_unknown_plant_and_missing_model_file_are_refused(tmp_path, capsys):
-    out = tmp_path / "out"
-    assert main(["simulate", "--plant", "pneumatik", "--out", str(out)]) == 2
-    assert "--plant 'pneumatik': expected one of pneumatic, paper" in capsys.readouterr().err
-    missing = tmp_path / "none.yaml"
-    assert main(["simulate", "--controller", f"offset-free-lqg:{missing}", "--out", str(out)]) == 2
-    assert "model file not found" in capsys.readouterr().err
-    assert not out.exists()
+def test_flags_build_the_scenario_variants_they_abbreviate(tmp_path):
+    model = tmp_path / "m.yaml"
+    model.write_text("{}")
+    scenario = scenario_from_flags(
+        flags(duration=7.0, plant=f"identified:{model}", controller="paper-lqg"),
+        {"--duration": "duration_s", "--plant": "plant", "--controller": "controller"},
+    )
+    assert scenario.duration_s == 7.0
+    assert scenario.plant == IdentifiedPlant(model_file=str(model))
+    assert scenario.controller == PaperLqg()
 
 
-def test_mistyped_config_is_refused_before_anything_runs(tmp_path, capsys):
-    config = tmp_path / "bad.yaml"
-    config.write_text("cameras:\n  kinect_v2:\n    frame_rate: 30\n")
-    out = tmp_path / "out"
-    assert main(["simulate", "--config", str(config), "--out", str(out)]) == 2
-    error = capsys.readouterr().err
-    assert "bad.yaml" in error and "cameras.kinect_v2.frame_rate" in error
-    assert "frame_rate_hz" in error
-    assert not out.exists()
-
-
-def test_bad_duration_is_refused(tmp_path, capsys):
-    assert main(["simulate", "--duration", "0", "--out", str(tmp_path / "o")]) == 2
-    assert "--duration" in capsys.readouterr().err
-
-
-@pytest.mark.parametrize(
-    "plant, controller",
-    # The paper's loop logs at two periods (its controller's 0.048 s and the cameras' 1/15 s).
-    [("pneumatic", "offset-free-lqg"), ("paper", "paper-lqg")],
-)
-def test_the_streamed_recording_is_the_one_shot_recording_of_the_same_run(
-    tmp_path, plant, controller
-):
-    # `maskless simulate` writes the recording in batches from a worker while the loop runs.
-    args = ["--duration", "12", "--seed", "4", "--plant", plant, "--controller", controller]
-    assert main(["simulate", *args, "--out", str(tmp_path)]) == 0
-    config = load_scenario()
-    config.duration_s, config.random_seed = 12.0, 4
-    config.plant = plant_from_shorthand(plant)
-    config.controller = controller_from_shorthand(controller)
-    write_recording(tmp_path / "whole.mcap", simulate(config).recording_channels())
-    assert (tmp_path / "run.mcap").read_bytes() == (tmp_path / "whole.mcap").read_bytes()
+def test_an_error_names_the_flags_given_and_no_other():
+    with pytest.raises(ConfigError) as raised:
+        scenario_from_flags(
+            flags(duration=-1.0), {"--duration": "duration_s", "--seed": "random_seed"}
+        )
+    assert "command line (--duration)" in str(raised.value)
+    assert "--seed" not in str(raised.value)

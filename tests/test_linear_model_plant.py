@@ -62,7 +62,7 @@ def test_default_state_is_the_operating_point(plant, model):
 
 def test_linearize_recovers_the_model_and_autodiff_works(plant, model):
     context = plant.CreateDefaultContext()
-    plant.GetInputPort("inlet_valve_current_a").FixValue(context, [model.operating_input_a])
+    plant.GetInputPort("inlet_valve_current_a").FixValue(context, [model.operating_input])
     linear = Linearize(
         plant,
         context,

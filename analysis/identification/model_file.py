@@ -26,27 +26,27 @@ _SI_UNITS = {"m": ("m", 1.0), "mm": ("m", 1e-3), "A": ("A", 1.0), "mA": ("A", 1e
 def model_file_contents(
     fitted: "FittedModel",
     *,
-    sample_period_s: float,
     input_unit: str,
     output_unit: str,
     input_offset: float,
     output_offset: float,
     detrend: str,
     trend_slopes_per_sample: tuple[float, float] | None,
-    innovations_variance: float,
     verdict: str,
 ) -> dict:
-    """The YAML mapping of one fitted model (offsets and variance in the record's units)."""
+    """The YAML mapping of one fitted model, with the record's offsets and units (the model is
+    of the detrended record's deviations, in the record's units; the variance in output_unit²)."""
+    model = fitted.model
     contents = {
         "method": fitted.method,
-        "order": fitted.model.order,
-        "sample_period_s": sample_period_s,
-        **{name: matrix.tolist() for name, matrix in fitted.model.state_space().items()},
+        "order": model.order,
+        "sample_period_s": model.sample_period_s,
+        **{name: getattr(model, name).tolist() for name in ("A", "B", "C", "D", "K")},
         "input": {"unit": input_unit, "offset": input_offset},
         "output": {"unit": output_unit, "offset": output_offset},
         "detrend": detrend,
-        "innovations_variance": innovations_variance,
-        "stable": fitted.model.is_stable(),
+        "innovations_variance": model.innovations_variance,
+        "stable": model.is_stable(),
         "verdict": verdict,
     }
     if trend_slopes_per_sample is not None:

@@ -218,14 +218,12 @@ def write_outputs(fitted_models, parts, report, offsets, units, args) -> None:
     for fitted, entry in zip(fitted_models, report["models"], strict=True):
         contents = model_file_contents(
             fitted,
-            sample_period_s=args.ts,
             input_unit=units[0],
             output_unit=units[1],
             input_offset=offsets.input_offset,
             output_offset=offsets.output_offset,
             detrend=args.detrend,
             trend_slopes_per_sample=(offsets.input_slope, offsets.output_slope) if linear else None,
-            innovations_variance=entry["estimation"]["mse"],
             verdict=entry["verdict"],
         )
         path = args.out / f"model_{fitted.method}_order{fitted.model.order}.yaml"

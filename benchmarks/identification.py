@@ -53,7 +53,8 @@ def judge(estimate, order, samples, repeats):
         name: fit_percent(yv, m.simulate(uv, m.initial_state_for(uv, yv, "simulation")))
         for name, m in (("estimated", model), ("true", true))
     }
-    pole_error = max(min(abs(p - q) for q in model.poles()) for p in TRUE_SYSTEMS[order]["poles"])
+    poles = model.linear_model().poles()
+    pole_error = max(min(abs(p - q) for q in poles) for p in TRUE_SYSTEMS[order]["poles"])
     return {
         "samples": samples,
         "seconds": best,

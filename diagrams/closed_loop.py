@@ -33,18 +33,11 @@ from maskless.diagrams.scenario import (
     shorthand,
 )
 from maskless.errors import ConfigError
-from maskless.systems.control.offset_free_lqg import (
-    add_offset_free_lqg,
-    design_model_from_identified,
-    design_offset_free_lqg,
-)
+from maskless.systems.control.offset_free_lqg import add_offset_free_lqg, design_offset_free_lqg
 from maskless.systems.control.paper_lqg import add_paper_lqg, paper_lqg
 from maskless.systems.control.valve_allocation import SplitRangeAllocation, current_split_allocation
-from maskless.systems.paper_parameters import (
-    IdentifiedModel,
-    paper_filter_variances_si,
-    paper_identified_model,
-)
+from maskless.systems.linear_model import LinearModel
+from maskless.systems.paper_parameters import paper_filter_variances_si, paper_identified_model
 from maskless.systems.plant.linear_model_plant import (
     add_linear_model_plant,
     operating_head_height_m,
@@ -77,8 +70,9 @@ class ClosedLoop:
         diagram: the Diagram, named "{plant}_{controller}_closed_loop".
         plant: which plant ("pneumatic", "paper" or "identified").
         controller: which controller ("offset-free-lqg" or "paper-lqg").
-        model: the linear model the controller was designed on (IdentifiedModel for paper-lqg,
-            LinearDesignModel for offset-free-lqg).
+        model: the linear model the controller was designed on (its output the camera
+            distance for paper-lqg, the head height for offset-free-lqg); None when nothing
+            closes the loop (an excitation run).
         design: the controller's gains (LqgDesign or OffsetFreeLqgDesign).
         start_height_m: head height above the table at t = 0 (m).
         sensor_names: the cameras, in order.
@@ -89,7 +83,7 @@ class ClosedLoop:
     diagram: Diagram
     plant: str
     controller: str
-    model: object
+    model: LinearModel | None
     design: object
     start_height_m: float
     sensor_names: list[str]
@@ -104,7 +98,7 @@ class AddedPlant:
     outlet: InputPort
     head_height: OutputPort
     start_height_m: float
-    model: IdentifiedModel | None = None
+    model: LinearModel | None = None
     camera_height_m: float | None = None
 
 
@@ -234,7 +228,12 @@ def _offset_free_design(
     else:
         identified = load_identified_model(controller.design_model_file)
         camera_height_m = None
-    model = design_model_from_identified(identified, camera_height_m)
+    # The design's output is the head height: a camera distance (the paper's model) is turned
+    # into one with the camera's height.
+    if camera_height_m is None:
+        model = identified
+    else:
+        model = identified.output_subtracted_from(camera_height_m)
     try:
         # An identified model's output is the fused estimate as logged at a tick, after that
         # tick's update; the controller reads it one tick later.

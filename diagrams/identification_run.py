@@ -333,14 +333,12 @@ def write_identification(identified: "IdentificationRun", out: str | Path) -> di
     for fitted, entry in zip(fitted_models, report["models"], strict=True):
         contents = model_file_contents(
             fitted,
-            sample_period_s=request.ts,
             input_unit=units[0],
             output_unit=units[1],
             input_offset=offsets.input_offset,
             output_offset=offsets.output_offset,
             detrend=request.detrend,
             trend_slopes_per_sample=(offsets.input_slope, offsets.output_slope) if linear else None,
-            innovations_variance=entry["estimation"]["mse"],
             verdict=entry["verdict"],
         )
         path = out / f"model_{fitted.method}_order{fitted.model.order}.yaml"

@@ -258,7 +258,7 @@ def stability_report(paper, cases, design, plant_head_mass_kg: float) -> dict:
         "paper_lqg": _paper_report(paper),
         "offset_free_lqg": {
             "design": {
-                "operating_lift_mm": m_to_mm(model.input_operating_point),
+                "operating_lift_mm": m_to_mm(model.operating_input),
                 "sample_period_s": period,
                 "measurement_delay_ticks": delay,
                 "measurement_delay_s": delay * period,

@@ -108,7 +108,7 @@ def _paper_model_figures(loop, paper, command) -> dict:
     """Why the paper's LQG cannot move the head: its model's gain and its poles."""
     model, design = loop.model, loop.design
     # The model's output is a distance below the camera; the head rises as it shrinks.
-    lift_gain_mm_per_ma = -m_to_mm(model.dc_gain_m_per_a()) / a_to_ma(1.0)
+    lift_gain_mm_per_ma = -m_to_mm(model.dc_gain()) / a_to_ma(1.0)
     lift_limits = [
         lift_gain_mm_per_ma * (current - paper.operating_current_ma)
         for current in (0.0, paper.valve_saturation_current_ma)

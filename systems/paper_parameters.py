@@ -9,6 +9,7 @@ import numpy as np
 
 from maskless.errors import ConfigError
 from maskless.systems.config_loading import UNSET, asset_path, load_config
+from maskless.systems.linear_model import LinearModel
 from maskless.systems.units import MA_PER_A, MM_PER_M, ma_to_a, mm2_to_m2, mm_to_m
 
 
@@ -75,51 +76,25 @@ def load_paper_parameters() -> PaperParameters:
     return load_config(PaperParameters, asset_path("paper.yaml"))
 
 
-@dataclass(frozen=True)
-class IdentifiedModel:
-    """A discrete innovations-form model x+ = A x + B u + K e, y = C x + D u + e, in SI.
+def paper_identified_model(paper: PaperParameters) -> LinearModel:
+    """Eq. 25-26 in SI: from the valve current (A) to the camera-to-head distance (m).
 
-    Attributes:
-        A, B, C, D, K: the matrices; x and y in m, u in A (B in m/A).
-        sample_period_s: Ts.
-        operating_output_m: the output (camera-to-head distance) the model is linearised around.
-        operating_input_a: the valve current the model is linearised around.
+    x is in mm in the paper; scaling x and y by 1/1000 keeps A, C and K, and B (mm/mA) becomes
+    m/A with the same digits, which the conversion below makes explicit. The paper gives no
+    innovations variance.
     """
-
-    A: np.ndarray
-    B: np.ndarray
-    C: np.ndarray
-    D: np.ndarray
-    K: np.ndarray
-    sample_period_s: float
-    operating_output_m: float
-    operating_input_a: float
-
-    def dc_gain_m_per_a(self) -> float:
-        """Steady-state output change per unit input change, C (I - A)⁻¹ B + D."""
-        return discrete_dc_gain(self.A, self.B, self.C, self.D)
-
-
-def discrete_dc_gain(A, B, C, D=None) -> float:
-    """Steady output per unit steady input of x+ = A x + B u, y = C x + D u: C (I - A)⁻¹ B + D."""
-    n = A.shape[0]
-    gain = (C @ np.linalg.solve(np.eye(n) - A, B))[0, 0]
-    return float(gain if D is None else gain + D[0, 0])
-
-
-def paper_identified_model(paper: PaperParameters) -> IdentifiedModel:
-    """Eq. 25-26 in SI. x is in mm in the paper; scaling x and y by 1/1000 keeps A, C, K, and
-    B (mm/mA) becomes m/A with the same digits, which the conversion below makes explicit."""
     b_m_per_a = mm_to_m(np.asarray(paper.B_mm_per_ma, float)) * MA_PER_A
-    return IdentifiedModel(
+    return LinearModel(
         A=np.asarray(paper.A, float).reshape(2, 2),
         B=b_m_per_a.reshape(2, 1),
         C=np.asarray(paper.C, float).reshape(1, 2),
         D=np.array([[mm_to_m(paper.D) * MA_PER_A]]),
         K=np.asarray(paper.K, float).reshape(2, 1),
         sample_period_s=paper.sample_period_s,
-        operating_output_m=mm_to_m(paper.operating_distance_mm),
-        operating_input_a=ma_to_a(paper.operating_current_ma),
+        operating_output=mm_to_m(paper.operating_distance_mm),
+        operating_input=ma_to_a(paper.operating_current_ma),
+        input_unit="A",
+        output_unit="m",
     )
 
 

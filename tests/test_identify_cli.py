@@ -129,7 +129,7 @@ def test_identify_reads_a_maskless_recording(tmp_path, capsys):
     assert (saved["input"]["unit"], saved["output"]["unit"]) == ("A", "m")
     loaded = load_identified_model(tmp_path / "id" / "model_pem_order2.yaml")
     np.testing.assert_allclose(loaded.B, np.array(saved["B"]))
-    assert loaded.operating_input_a == pytest.approx(saved["input"]["offset"])
+    assert loaded.operating_input == pytest.approx(saved["input"]["offset"])
     # A --ts that is not the recording's sample period is refused.
     assert main(["identify", "--input", str(out / "run.mcap"), "--ts", "0.1"]) == 2
     assert "0.048 s apart" in capsys.readouterr().err

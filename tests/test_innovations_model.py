@@ -15,12 +15,12 @@ MODEL = InnovationsModel(
 
 def recursion(model, u, y, x0, one_step):
     """Eq. 25 run sample by sample: x(k+1) = A x + B u + K (y - C x) (one step) or A x + B u."""
-    m = model.state_space()
+    m = model.linear_model()
     x, out = np.array(x0, float), []
     for uk, yk in zip(u, y, strict=True):
-        yhat = (m["C"] @ x)[0]
+        yhat = (m.C @ x)[0]
         out.append(yhat)
-        x = m["A"] @ x + m["B"][:, 0] * uk + (m["K"][:, 0] * (yk - yhat) if one_step else 0)
+        x = m.A @ x + m.B[:, 0] * uk + (m.K[:, 0] * (yk - yhat) if one_step else 0)
     return np.array(out)
 
 
@@ -36,19 +36,21 @@ def test_simulation_matches_the_recursion_and_scipy():
     u = np.random.default_rng(2).normal(size=300)
     simulated = MODEL.simulate(u, np.zeros(2))
     np.testing.assert_allclose(simulated, recursion(MODEL, u, u, np.zeros(2), False), atol=1e-12)
-    m = MODEL.state_space()
-    _, reference, _ = scipy.signal.dlsim((m["A"], m["B"], m["C"], m["D"], 1.0), u)
+    m = MODEL.linear_model()
+    _, reference, _ = scipy.signal.dlsim((m.A, m.B, m.C, m.D, 1.0), u)
     np.testing.assert_allclose(simulated, reference[:, 0], atol=1e-12)
 
 
-def test_poles_and_dc_gain_match_the_matrices():
-    m = MODEL.state_space()
+def test_the_linear_model_has_the_polynomials_poles_and_gain():
+    # Observer canonical form: the poles are the roots of A(z), the DC gain is B(1) / A(1).
+    m = MODEL.linear_model(innovations_variance=0.01)
     np.testing.assert_allclose(
-        np.sort_complex(MODEL.poles()), np.sort_complex(np.linalg.eigvals(m["A"]))
+        np.sort_complex(m.poles()), np.sort_complex(np.roots([1.0, *MODEL.a]))
     )
-    dc = (m["C"] @ np.linalg.solve(np.eye(2) - m["A"], m["B"]))[0, 0]
-    assert MODEL.dc_gain() == pytest.approx(dc)
-    assert MODEL.is_stable()
+    assert m.dc_gain() == pytest.approx(MODEL.b.sum() / (1.0 + MODEL.a.sum()), rel=1e-12)
+    np.testing.assert_array_equal(m.K[:, 0], MODEL.k)
+    assert (m.D[0, 0], m.sample_period_s, m.innovations_variance) == (0.0, 0.048, 0.01)
+    assert m.is_stable()
 
 
 @pytest.mark.parametrize("horizon", ["one_step", "simulation"])
@@ -67,13 +69,13 @@ def test_k_step_prediction_matches_running_the_predictor_then_the_model(steps):
     model = InnovationsModel(
         a=MODEL.a, b=MODEL.b, k=MODEL.k, sample_period_s=1.0, initial_state=np.zeros(2)
     )
-    m = model.state_space()
+    m = model.linear_model()
     # Reference: the one-step predictor's state x(t-k+1 | t-k), then k-1 steps of the model with
     # the known inputs and no innovations.
     states = [np.zeros(2)]
     for uk, yk in zip(u, y, strict=True):
         x = states[-1]
-        states.append(m["A"] @ x + m["B"][:, 0] * uk + m["K"][:, 0] * (yk - x[0]))
+        states.append(m.A @ x + m.B[:, 0] * uk + m.K[:, 0] * (yk - x[0]))
     reference = np.zeros(200)
     for t in range(200):
         origin = t - steps + 1  # x(origin | origin - 1) uses data up to t - k
@@ -81,7 +83,7 @@ def test_k_step_prediction_matches_running_the_predictor_then_the_model(steps):
             continue
         x = states[origin]
         for j in range(origin, t):
-            x = m["A"] @ x + m["B"][:, 0] * u[j]
+            x = m.A @ x + m.B[:, 0] * u[j]
         reference[t] = x[0]
     predicted = model.predict_k_steps(u, y, steps)
     np.testing.assert_allclose(predicted[steps:], reference[steps:], atol=1e-10)

@@ -64,7 +64,7 @@ def test_default_state_is_the_operating_point(plant, model):
 
 def test_linearize_recovers_the_model_and_autodiff_works(plant, model):
     context = plant.CreateDefaultContext()
-    plant.GetInputPort("inlet_valve_current_a").FixValue(context, [model.operating_input_a])
+    plant.GetInputPort("inlet_valve_current_a").FixValue(context, [model.operating_input])
     plant.GetInputPort("outlet_valve_current_a").FixValue(context, [0.0])
     linear = Linearize(
         plant,

@@ -11,19 +11,16 @@ from maskless.analysis.stability.loop_robustness import (
     command_holding_lift_m,
     holdable_lift_range_m,
     loop_gain_peak,
-    offset_free_controller_model,
     plant_at_lift,
     robustness_cases,
     steady_lift_at_command_m,
 )
-from maskless.analysis.stability.margins import (
-    DiscreteStateSpace,
-    added_delay_samples_loop,
-    feedback_loop_poles,
-)
+from maskless.analysis.stability.margins import added_delay_samples_loop, feedback_loop_poles
 from maskless.diagrams.plant_analysis import offset_free_setup
 from maskless.diagrams.scenario import load_scenario
+from maskless.systems.control.offset_free_lqg import controller_state_space
 from maskless.systems.control.paper_lqg import paper_lqg
+from maskless.systems.linear_model import LinearModel
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +50,7 @@ def nominal_loop(config, setup):
         design.model.sample_period_s,
         design.measurement_delay_samples,
     )
-    return analyze_loop(plant, offset_free_controller_model(design))
+    return analyze_loop(plant, controller_state_space(design))
 
 
 def sorted_poles(poles):
@@ -105,14 +102,14 @@ def test_loop_gain_peak_matches_scipy_frequency_response(paper):
 
 def test_loop_gain_peak_of_a_first_order_lag_is_at_dc():
     # L(z) = b / (z - a): |L| is largest at z = 1, b / (1 - a); the grid starts just above it.
-    loop = DiscreteStateSpace([[0.5]], [[1.0]], [[0.25]], [[0.0]], 0.1)
+    loop = LinearModel([[0.5]], [[1.0]], [[0.25]], [[0.0]], 0.1)
     peak, frequency = loop_gain_peak(loop)
     assert peak == pytest.approx(0.5, rel=1e-9)
     assert frequency < 1e-3
 
 
 def scaled(controller, factor):
-    return DiscreteStateSpace(
+    return LinearModel(
         controller.A,
         controller.B,
         factor * controller.C,
@@ -187,7 +184,7 @@ def test_plant_dc_gain_is_the_slope_of_steady_lift_per_command(config, setup, li
     plant, point = plant_at_lift(nominal, allocation, lift_m, design.model.sample_period_s, 3)
     assert point.valves.valve == valve and point.lift_m == lift_m
     assert plant.order == 4 + 3
-    dc_gain = (plant.C @ np.linalg.solve(np.eye(plant.order) - plant.A, plant.B))[0, 0]
+    dc_gain = plant.dc_gain()
     h = 1e-6
     slope = (
         steady_lift_at_command_m(nominal, allocation, point.command_m + h)

@@ -7,22 +7,21 @@ import scipy.linalg
 import scipy.signal
 
 from maskless.analysis.stability.margins import (
-    DiscreteStateSpace,
     Margins,
     added_delay_samples_loop,
     discrete_margins,
     feedback_loop_poles,
     loop_transfer,
     series,
-    stable,
 )
+from maskless.systems.linear_model import LinearModel, stable
 
 TS = 0.048
 
 
 def integrator(sample_period_s):
     """G(z) = Ts / (z - 1): forward-Euler integration of u."""
-    return DiscreteStateSpace([[1.0]], [[sample_period_s]], [[1.0]], [[0.0]], sample_period_s)
+    return LinearModel([[1.0]], [[sample_period_s]], [[1.0]], [[0.0]], sample_period_s)
 
 
 def random_model(seed, n, feedthrough=0.0):
@@ -30,9 +29,7 @@ def random_model(seed, n, feedthrough=0.0):
     rng = np.random.default_rng(seed)
     A = rng.normal(size=(n, n))
     A *= 0.9 / np.max(np.abs(np.linalg.eigvals(A)))
-    return DiscreteStateSpace(
-        A, rng.normal(size=(n, 1)), rng.normal(size=(1, n)), [[feedthrough]], TS
-    )
+    return LinearModel(A, rng.normal(size=(n, 1)), rng.normal(size=(1, n)), [[feedthrough]], TS)
 
 
 def lqg_loop():
@@ -45,13 +42,13 @@ def lqg_loop():
     Kx = np.linalg.solve(0.01 + B.T @ P @ B, B.T @ P @ A)
     S = scipy.linalg.solve_discrete_are(A.T, C.T, np.diag([1e-4, 1e-2]), np.array([[1e-4]]))
     Lk = A @ S @ C.T / (C @ S @ C.T + 1e-4)
-    plant = DiscreteStateSpace(A, B, C, [[0.0]], TS)
-    controller = DiscreteStateSpace(A - B @ Kx - Lk @ C, Lk, -Kx, [[0.0]], TS)
+    plant = LinearModel(A, B, C, [[0.0]], TS)
+    controller = LinearModel(A - B @ Kx - Lk @ C, Lk, -Kx, [[0.0]], TS)
     return plant, controller, (A - B @ Kx, A - Lk @ C)
 
 
 def scaled(model, factor):
-    return DiscreteStateSpace(model.A, model.B, factor * model.C, factor * model.D, TS)
+    return LinearModel(model.A, model.B, factor * model.C, factor * model.D, TS)
 
 
 def sorted_poles(poles):
@@ -65,7 +62,7 @@ def sorted_poles(poles):
 def test_integrator_loop_margins_match_the_closed_form(gain, sample_period_s):
     kT = gain * sample_period_s
     plant = integrator(sample_period_s)
-    controller = DiscreteStateSpace.static_gain(-gain, sample_period_s)
+    controller = LinearModel.static_gain(-gain, sample_period_s)
 
     np.testing.assert_allclose(feedback_loop_poles(plant, controller), [1.0 - kT], atol=1e-14)
     margins = discrete_margins(loop_transfer(plant, controller))
@@ -85,8 +82,8 @@ def test_integrator_loop_margins_match_the_closed_form(gain, sample_period_s):
 
 def test_the_sign_argument_closes_the_loop_around_a_controller_without_its_minus_sign():
     plant = integrator(TS)
-    written_with_sign = DiscreteStateSpace.static_gain(-5.0, TS)
-    written_without = DiscreteStateSpace.static_gain(5.0, TS)
+    written_with_sign = LinearModel.static_gain(-5.0, TS)
+    written_without = LinearModel.static_gain(5.0, TS)
     np.testing.assert_allclose(
         feedback_loop_poles(plant, written_without, sign=-1),
         feedback_loop_poles(plant, written_with_sign),
@@ -96,26 +93,6 @@ def test_the_sign_argument_closes_the_loop_around_a_controller_without_its_minus
         loop_transfer(plant, written_without, sign=-1).frequency_response(omega),
         loop_transfer(plant, written_with_sign).frequency_response(omega),
     )
-
-
-@pytest.mark.parametrize("n, feedthrough", [(1, 0.0), (4, 0.0), (6, 0.7)])
-def test_frequency_response_matches_scipy_freqz(n, feedthrough):
-    model = random_model(n, n, feedthrough)
-    omega = np.geomspace(1e-3, math.pi / TS, 50)
-    num, den = scipy.signal.ss2tf(model.A, model.B, model.C, model.D)
-    _, reference = scipy.signal.freqz(num[0], den, worN=omega * TS)
-    np.testing.assert_allclose(model.frequency_response(omega), reference, rtol=1e-9)
-    assert model.frequency_response(omega.reshape(5, 10)).shape == (5, 10)
-    assert model.frequency_response(2.0).shape == ()
-
-
-def test_frequency_response_matches_scipy_dfreqresp():
-    model = random_model(3, 3, feedthrough=0.4)  # D != 0, so scipy's numerator is well formed
-    omega = np.linspace(0.5, 60.0, 40)
-    _, reference = scipy.signal.dfreqresp(
-        scipy.signal.dlti(model.A, model.B, model.C, model.D, dt=TS), w=omega * TS
-    )
-    np.testing.assert_allclose(model.frequency_response(omega), reference, rtol=1e-9)
 
 
 def test_series_multiplies_responses_and_unites_poles():
@@ -150,7 +127,7 @@ def test_feedback_poles_of_a_static_gain_are_those_of_a_minus_b_k_c():
     plant = random_model(6, 4)
     K = 0.8
     np.testing.assert_allclose(
-        sorted_poles(feedback_loop_poles(plant, DiscreteStateSpace.static_gain(-K, TS))),
+        sorted_poles(feedback_loop_poles(plant, LinearModel.static_gain(-K, TS))),
         sorted_poles(np.linalg.eigvals(plant.A - K * plant.B @ plant.C)),
         atol=1e-9,
     )
@@ -182,7 +159,7 @@ def test_lqg_closed_loop_poles_are_the_regulator_and_observer_poles():
 
 @pytest.mark.parametrize("delay_samples", [0, 1, 3])
 def test_a_delay_lowers_the_phase_margin_by_the_closed_form_lag(delay_samples):
-    loop = loop_transfer(integrator(TS), DiscreteStateSpace.static_gain(-5.0, TS))
+    loop = loop_transfer(integrator(TS), LinearModel.static_gain(-5.0, TS))
     delayed = added_delay_samples_loop(loop, delay_samples)
     omega = np.geomspace(0.1, math.pi / TS, 25)
     np.testing.assert_allclose(
@@ -200,7 +177,7 @@ def test_a_delay_lowers_the_phase_margin_by_the_closed_form_lag(delay_samples):
 @pytest.mark.parametrize("make_loop", ["integrator", "lqg"])
 def test_the_delay_margin_separates_stable_and_unstable_whole_sample_delays(make_loop):
     if make_loop == "integrator":  # tolerates 7.67 samples
-        plant, controller = integrator(TS), DiscreteStateSpace.static_gain(-4.0, TS)
+        plant, controller = integrator(TS), LinearModel.static_gain(-4.0, TS)
     else:
         plant, controller, _ = lqg_loop()
     margin_samples = discrete_margins(loop_transfer(plant, controller)).delay_margin_s / TS
@@ -214,7 +191,7 @@ def test_the_delay_margin_separates_stable_and_unstable_whole_sample_delays(make
 @pytest.mark.parametrize("make_loop", ["integrator", "lqg"])
 def test_gain_just_inside_the_gain_margin_is_stable_and_just_outside_is_not(make_loop):
     if make_loop == "integrator":
-        plant, controller = integrator(TS), DiscreteStateSpace.static_gain(-5.0, TS)
+        plant, controller = integrator(TS), LinearModel.static_gain(-5.0, TS)
     else:
         plant, controller, _ = lqg_loop()
     margins = discrete_margins(loop_transfer(plant, controller))
@@ -232,7 +209,7 @@ def test_gain_just_inside_the_gain_margin_is_stable_and_just_outside_is_not(make
 def test_a_negative_dc_gain_is_a_phase_crossing_at_zero_frequency():
     # L = c / (z - 0.5), c < 0: L(1) = 2c; a gain 1 / |2c| puts a closed-loop pole at z = 1.
     c = -0.1
-    loop = DiscreteStateSpace([[0.5]], [[1.0]], [[c]], [[0.0]], TS)
+    loop = LinearModel([[0.5]], [[1.0]], [[c]], [[0.0]], TS)
     margins = discrete_margins(loop)
     assert margins.phase_crossover_rad_s == 0.0
     assert margins.gain_margin == pytest.approx(0.5 / abs(c), rel=1e-12)
@@ -241,7 +218,7 @@ def test_a_negative_dc_gain_is_a_phase_crossing_at_zero_frequency():
 
 def test_no_crossings_give_infinite_margins_and_json_safe_values():
     # L = 0.1 z / (z - 0.5): |L| <= 0.2 and -90° < ∠L <= 0°, positive at both band edges.
-    loop = DiscreteStateSpace([[0.5]], [[1.0]], [[0.05]], [[0.1]], TS)
+    loop = LinearModel([[0.5]], [[1.0]], [[0.05]], [[0.1]], TS)
     margins = discrete_margins(loop)
     assert margins.as_dict() == {
         "gain_margin": "inf",
@@ -260,36 +237,6 @@ def test_as_dict_keeps_finite_margins():
     assert json.loads(json.dumps(margins.as_dict(), allow_nan=False))["gain_margin"] == 2.0
 
 
-def test_stable_uses_the_strict_radius():
-    assert stable([0.5, -0.9j])
-    assert not stable([0.5, 1.0])
-    assert not stable([0.95], tol=0.1)
-    assert stable(np.array([], dtype=complex))
-
-
-@pytest.mark.parametrize(
-    "matrices, match",
-    [
-        (dict(A=np.eye(2)[0]), r"A must be a square 2-D array"),
-        (dict(A=np.zeros((2, 3))), r"A must be a square 2-D array"),
-        (dict(B=np.zeros((2, 2))), r"B must have shape \(2, 1\)"),
-        (dict(C=np.zeros((2, 2))), r"C must have shape \(1, 2\)"),
-        (dict(D=np.zeros(1)), r"D must have shape \(1, 1\)"),
-        (dict(B=[[np.nan], [0.0]]), r"B must be finite"),
-        (dict(sample_period_s=0.0), r"sample_period_s must be positive"),
-        (dict(sample_period_s=math.inf), r"sample_period_s must be positive"),
-        (dict(sample_period_s="0.048"), r"sample_period_s must be a number"),
-    ],
-)
-def test_bad_models_are_rejected_naming_the_argument(matrices, match):
-    arguments = dict(
-        A=np.eye(2), B=np.ones((2, 1)), C=np.ones((1, 2)), D=[[0.0]], sample_period_s=TS
-    )
-    arguments.update(matrices)
-    with pytest.raises(ValueError, match=match):
-        DiscreteStateSpace(**arguments)
-
-
 def test_bad_arguments_are_rejected_naming_the_argument():
     plant, other_rate = integrator(TS), integrator(0.01)
     with pytest.raises(ValueError, match="first and second must share one sample period"):
@@ -299,17 +246,9 @@ def test_bad_arguments_are_rejected_naming_the_argument():
     with pytest.raises(ValueError, match=r"sign must be \+1 or -1"):
         loop_transfer(plant, plant, sign=2)
     with pytest.raises(ValueError, match="ill-posed algebraic loop"):
-        feedback_loop_poles(
-            DiscreteStateSpace.static_gain(2.0, TS), DiscreteStateSpace.static_gain(0.5, TS)
-        )
+        feedback_loop_poles(LinearModel.static_gain(2.0, TS), LinearModel.static_gain(0.5, TS))
     for delay in (-1, 1.5, True):
         with pytest.raises(ValueError, match="delay_samples must be a non-negative integer"):
             added_delay_samples_loop(plant, delay)
     with pytest.raises(ValueError, match="n_frequencies must be an integer >= 16"):
         discrete_margins(plant, n_frequencies=8)
-    with pytest.raises(ValueError, match="omega_rad_s must be finite"):
-        plant.frequency_response([1.0, math.nan])
-    with pytest.raises(ValueError, match=r"poles must be a 1-D array \(n,\)"):
-        stable(np.zeros((2, 2)))
-    with pytest.raises(ValueError, match=r"tol must lie in \[0, 1\)"):
-        stable([0.5], tol=1.0)

@@ -5,6 +5,7 @@ from identification_records import simulate_record
 
 from maskless.analysis.identification.model_file import load_identified_model, model_file_contents
 from maskless.analysis.identification.report import Part, fit
+from maskless.errors import ModelError
 
 
 def test_a_mm_per_ma_model_loads_into_si(tmp_path):
@@ -12,24 +13,26 @@ def test_a_mm_per_ma_model_loads_into_si(tmp_path):
     fitted = fit("pem", Part("estimation", u, y), 2, 0.048)
     contents = model_file_contents(
         fitted,
-        sample_period_s=0.048,
         input_unit="mA",
         output_unit="mm",
         input_offset=81.3,
         output_offset=692.4,
         detrend="mean",
         trend_slopes_per_sample=None,
-        innovations_variance=0.01,
         verdict="The input explains the output: ...",
     )
     path = tmp_path / "model.yaml"
     path.write_text(yaml.safe_dump(contents))
     model = load_identified_model(path)
-    # 1 mm/mA is 1e-3 m / 1e-3 A: B keeps its digits; the offsets become SI.
-    np.testing.assert_allclose(model.B, fitted.model.state_space()["B"])
-    assert model.operating_output_m == pytest.approx(0.6924)
-    assert model.operating_input_a == pytest.approx(0.0813)
-    assert model.dc_gain_m_per_a() == pytest.approx(fitted.model.dc_gain())
+    # 1 mm/mA is 1e-3 m / 1e-3 A: B keeps its digits; the offsets and the variance become SI.
+    np.testing.assert_allclose(model.B, fitted.model.B)
+    np.testing.assert_allclose(model.K, fitted.model.K)
+    assert model.operating_output == pytest.approx(0.6924)
+    assert model.operating_input == pytest.approx(0.0813)
+    assert (model.input_unit, model.output_unit) == ("A", "m")
+    assert model.dc_gain() == pytest.approx(fitted.model.dc_gain())
+    assert contents["innovations_variance"] == fitted.model.innovations_variance
+    assert model.innovations_variance == pytest.approx(1e-6 * fitted.model.innovations_variance)
 
 
 def test_mixed_units_scale_b_and_unknown_units_are_refused(tmp_path):
@@ -48,5 +51,10 @@ def test_mixed_units_scale_b_and_unknown_units_are_refused(tmp_path):
     np.testing.assert_allclose(load_identified_model(path).B, [[2e-3], [1e-3]])  # mm/A -> m/A
     contents["input"]["unit"] = "psi"
     path.write_text(yaml.safe_dump(contents))
-    with pytest.raises(ValueError, match="m.yaml"):
+    with pytest.raises(ModelError, match="m.yaml"):
+        load_identified_model(path)
+    contents["input"]["unit"] = "A"
+    contents["B"] = [[2.0]]
+    path.write_text(yaml.safe_dump(contents))
+    with pytest.raises(ModelError, match=r"m.yaml: B must have shape \(2, 1\)"):
         load_identified_model(path)

@@ -11,16 +11,16 @@ from pydrake.systems.primitives import (
     VectorLogSink,
 )
 
+from maskless.errors import ModelError
 from maskless.systems.control.offset_free_lqg import (
-    LinearDesignModel,
     OffsetFreeLqgWeights,
     closed_loop_poles,
     controller_state_space,
     design_offset_free_lqg,
     make_offset_free_lqg,
-    steady_targets,
 )
 from maskless.systems.control.valve_allocation import SplitRangeAllocation
+from maskless.systems.linear_model import LinearModel
 
 A_, B_, T = 0.9, 0.5, 0.1
 U0, Y0 = 0.1, 0.2
@@ -34,14 +34,17 @@ WEIGHTS = OffsetFreeLqgWeights(
 )
 
 
-def scalar_model():
-    return LinearDesignModel(
-        A=np.array([[A_]]),
-        B=np.array([[B_]]),
-        C=np.array([[1.0]]),
+def scalar_model(a=A_, b=B_, d=0.0):
+    return LinearModel(
+        A=[[a]],
+        B=[[b]],
+        C=[[1.0]],
+        D=[[d]],
         sample_period_s=T,
-        input_operating_point=U0,
-        output_operating_point_m=Y0,
+        operating_input=U0,
+        operating_output=Y0,
+        input_unit="m",
+        output_unit="m",
     )
 
 
@@ -63,10 +66,10 @@ def test_lqr_gain_is_the_scalar_dare_solution(design):
     assert design.K[0, 0] == pytest.approx(B_ * P * A_ / (r + B_ * P * B_), rel=1e-9)
 
 
-def test_steady_targets_closed_form():
-    N_x, N_u = steady_targets(scalar_model())
-    assert N_x[0] == pytest.approx(1.0)
-    assert N_u == pytest.approx((1 - A_) / B_)
+def test_the_reference_enters_through_the_steady_target(design):
+    # x = a x + b u with x = 1: N_x = 1, N_u = (1 - a) / b.
+    assert design.state_per_reference[0] == pytest.approx(1.0)
+    assert design.command_per_reference == pytest.approx((1 - A_) / B_)
 
 
 def test_filter_gain_from_scipy_riccati(design):
@@ -106,7 +109,9 @@ def test_loop_poles_separate_into_regulator_and_estimator(delay):
     # Separation principle on the delayed plant: the loop's poles are eig(A - B K), the
     # estimator's eig(A_a - A_a M C_a), and the plant's uncontrollable delay states (at 0).
     design = design_offset_free_lqg(scalar_model(), WEIGHTS, measurement_delay_samples=delay)
-    A_c, B_c, C_c, D_c = controller_state_space(design)
+    controller = controller_state_space(design)
+    A_c, B_c, C_c, D_c = controller.A, controller.B, controller.C, controller.D
+    assert (controller.input_unit, controller.operating_input) == ("m", Y0)
     A_p, B_p, C_p = delayed_scalar_plant(delay)
     loop = np.block([[A_p + B_p @ D_c @ C_p, B_p @ C_c], [B_c @ C_p, A_c]])
     poles = closed_loop_poles(design)
@@ -188,12 +193,15 @@ def test_anti_windup(design):
 def test_an_integrating_model_is_refused_with_its_pole_named(a):
     # Its steady height per command is unbounded, so weights per metre of height cannot apply
     # (near it, Drake's Riccati solver would abort the process on a lost detectability).
-    model = LinearDesignModel(np.array([[a]]), np.array([[B_]]), np.array([[1.0]]), T, U0, Y0)
-    with pytest.raises(ValueError, match=r"pole at z = (1|0\.999999999) \(an integrator"):
-        design_offset_free_lqg(model, WEIGHTS)
+    with pytest.raises(ModelError, match=r"pole at z = (1|0\.999999999) \(an integrator"):
+        design_offset_free_lqg(scalar_model(a=a), WEIGHTS)
 
 
 def test_a_model_whose_input_holds_no_height_is_refused():
-    model = LinearDesignModel(np.array([[A_]]), np.array([[0.0]]), np.array([[1.0]]), T, U0, Y0)
-    with pytest.raises(ValueError, match="no steady state"):
-        design_offset_free_lqg(model, WEIGHTS)
+    with pytest.raises(ModelError, match="no steady state"):
+        design_offset_free_lqg(scalar_model(b=0.0), WEIGHTS)
+
+
+def test_a_model_with_feedthrough_is_refused():
+    with pytest.raises(ModelError, match=r"D = 0.5: .* without feedthrough"):
+        design_offset_free_lqg(scalar_model(d=0.5), WEIGHTS)

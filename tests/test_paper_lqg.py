@@ -1,13 +1,15 @@
+import dataclasses
+
 import numpy as np
 import pytest
 import scipy.linalg
 from system_harness import port_layout
 
+from maskless.errors import ModelError
 from maskless.systems.control.paper_lqg import (
     closed_loop_poles,
     design_lqg,
     make_paper_lqg,
-    steady_state_per_output,
 )
 from maskless.systems.paper_parameters import (
     load_paper_parameters,
@@ -50,6 +52,11 @@ def test_estimator_gain_is_scipys_one_step_predictor_gain(model, design):
     np.testing.assert_allclose(design.L, L, rtol=1e-6)
 
 
+def test_a_model_with_feedthrough_is_refused(paper, model):
+    with pytest.raises(ModelError, match="D = 0.001: .* without feedthrough"):
+        design_lqg(dataclasses.replace(model, D=[[1e-3]]), paper_lqg_weights(paper))
+
+
 def test_the_papers_lqr_leaves_the_poles_where_they_were(model, design):
     poles = closed_loop_poles(model, design)
     open_loop = np.sort_complex(poles["open_loop"])
@@ -59,8 +66,10 @@ def test_the_papers_lqr_leaves_the_poles_where_they_were(model, design):
     assert np.all(np.abs(poles["estimator"]) < 1)
 
 
-def test_state_for_output(model):
-    N_x = steady_state_per_output(model)
+def test_state_for_output_is_the_steady_target_with_the_input_held(model, design):
+    # The paper's regulator has no feedforward: its target holds the input at the operating point.
+    N_x = design.state_for_output
+    np.testing.assert_array_equal(N_x, model.steady_target(hold_input=True)[0])
     assert (model.C @ N_x)[0] == pytest.approx(1.0, abs=1e-3)
     np.testing.assert_allclose(N_x, [1.0, 1.0], atol=2e-3)  # both states are the output
 
@@ -86,7 +95,7 @@ def test_controller_ports_and_equations(model, design, applied, passed):
     controller.GetInputPort("reference_head_height_m").FixValue(context, [reference])
     controller.GetInputPort("applied_current_a").FixValue(context, [applied])
     # u = u_op - K (x_hat - N_x r) with the reference held from the last tick.
-    u_expected = model.operating_input_a - design.K @ (
+    u_expected = model.operating_input - design.K @ (
         x_hat - design.state_for_output * held_reference
     )
     assert controller.GetOutputPort("valve_current_a").Eval(context)[0] == pytest.approx(
@@ -95,12 +104,12 @@ def test_controller_ports_and_equations(model, design, applied, passed):
     # Eq. 34: x(k+1) = A x - L (C x - y) + B u, y and u as deviations in the model's coordinates
     # (distance below the camera), u the current the valve passes (no flow below 60 mA, clipped at
     # 165 mA), and the new reference is held.
-    y = CAMERA_M - height - model.operating_output_m
+    y = CAMERA_M - height - model.operating_output
     expected_next = (
         model.A @ x_hat
         - design.L[:, 0] * ((model.C @ x_hat)[0] - y)
-        + model.B[:, 0] * (passed - model.operating_input_a)
+        + model.B[:, 0] * (passed - model.operating_input)
     )
     updated = controller.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
     np.testing.assert_allclose(updated[:2], expected_next, rtol=1e-12)
-    assert updated[2] == pytest.approx(CAMERA_M - reference - model.operating_output_m)
+    assert updated[2] == pytest.approx(CAMERA_M - reference - model.operating_output)

@@ -32,8 +32,9 @@ def test_model_in_si(paper):
     np.testing.assert_array_equal(model.A, [[0.0, 1.0], [-0.9883, 1.988]])
     # mm/mA and m/A are the same ratio: 1 mm / 1 mA = 1e-3 m / 1e-3 A.
     np.testing.assert_allclose(model.B.ravel(), [-3.03e-07, -4.254e-07], rtol=1e-12)
-    assert model.operating_output_m == pytest.approx(0.692357479)
-    assert model.operating_input_a == pytest.approx(0.08132508)
+    assert model.operating_output == pytest.approx(0.692357479)
+    assert model.operating_input == pytest.approx(0.08132508)
+    assert (model.input_unit, model.output_unit) == ("A", "m")
 
 
 def test_dc_gain_matches_closed_form(paper):
@@ -41,7 +42,7 @@ def test_dc_gain_matches_closed_form(paper):
     model = paper_identified_model(paper)
     (a21, a22), (b1, b2) = paper.A[1], paper.B_mm_per_ma
     det = (1 - a22) - (-1) * (-a21)
-    assert model.dc_gain_m_per_a() == pytest.approx((b1 * (1 - a22) + b2) / det, rel=1e-9)
+    assert model.dc_gain() == pytest.approx((b1 * (1 - a22) + b2) / det, rel=1e-9)
 
 
 def test_lqg_weights_in_si_preserve_the_cost(paper):

@@ -14,8 +14,7 @@ def largest_pole_error(estimated, true_poles):
 
 def scipy_dc_gain(model):
     """The static gain by scipy's transfer function of the model's matrices, at z = 1."""
-    m = model.state_space()
-    num, den = scipy.signal.ss2tf(m["A"], m["B"], m["C"], m["D"])
+    num, den = scipy.signal.ss2tf(model.A, model.B, model.C, model.D)
     return np.polyval(num[0], 1.0) / np.polyval(den, 1.0)
 
 
@@ -68,15 +67,15 @@ def test_reproduces_matlabs_saved_report_on_the_paper_record():
     assert figures.fit_percent == pytest.approx(99.144289, abs=0.01)
     assert figures.mse == pytest.approx(6.0058e-4, rel=0.01)
     assert figures.fpe == pytest.approx(6.014e-4, rel=0.01)
-    assert model.is_stable()
+    assert model.linear_model().is_stable()
     # MATLAB's discretised A has characteristic polynomial z^2 - 1.976965 z + 0.976992.
     np.testing.assert_allclose(model.a, [-1.976965, 0.976992], atol=1e-4)
     # In MATLAB's basis (C = [1 0], the states are y and its one-step prediction) the states are
     # O x with O = [C; C A] of our observer form: B ≈ [-2.50e-6, -2.57e-6], K ≈ [0.635, 0.742].
-    m = model.state_space()
-    observability = np.vstack([m["C"], m["C"] @ m["A"]])
-    np.testing.assert_allclose((observability @ m["B"]).ravel(), [-2.50e-6, -2.57e-6], rtol=0.01)
-    np.testing.assert_allclose((observability @ m["K"]).ravel(), [0.635, 0.742], atol=0.001)
+    m = model.linear_model()
+    observability = np.vstack([m.C, m.C @ m.A])
+    np.testing.assert_allclose((observability @ m.B).ravel(), [-2.50e-6, -2.57e-6], rtol=0.01)
+    np.testing.assert_allclose((observability @ m.K).ravel(), [0.635, 0.742], atol=0.001)
 
 
 def test_on_the_paper_record_the_input_adds_nothing_to_the_one_step_fit():

@@ -1,4 +1,5 @@
-"""A single-input, single-output model in innovations form (Eq. 25), in observer canonical form.
+"""The polynomial parameterisation identification searches over: a single-input, single-output
+innovations-form model (Eq. 25) in observer canonical form.
 
     x(k+1) = A x(k) + B u(k) + K e(k),   y(k) = C x(k) + e(k)
     A = [[-a1, 1, 0, ...], [-a2, 0, 1, ...], ..., [-an, 0, ..., 0]],  C = [1, 0, ..., 0],  D = 0
@@ -8,6 +9,11 @@ B(q) = b1 q⁻¹ + ... + bn q⁻ⁿ and C(q) = A(q) + k1 q⁻¹ + ... + kn q⁻�
 class serves both. The one-step predictor (Eq. 19-20) is ŷ = (B/C) u + ((C - A)/C) y, which scipy's
 lfilter runs in C; its state is the model's state x, so an initial state enters as lfilter's zi
 (lfilter's transposed direct form is this observer form).
+
+This is identification's own working form: the estimators (PEM, ARMAX, ARX, N4SID) fit its
+coefficients (a, b, k) and the report's figures run its filters. Identification's result is the
+toolkit's ``LinearModel`` (``linear_model``): ``report.FittedModel.model`` and the model files
+`maskless identify` writes; its poles, stability and DC gain are read there.
 """
 
 from dataclasses import dataclass
@@ -15,10 +21,12 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.signal
 
+from maskless.systems.linear_model import LinearModel
+
 
 @dataclass(frozen=True)
 class InnovationsModel:
-    """An identified model.
+    """An innovations-form model as the estimators parameterise it.
 
     Attributes:
         a: A(q) coefficients a1..an (n,).
@@ -43,36 +51,32 @@ class InnovationsModel:
         """C(q) coefficients c1..cn of the noise model."""
         return self.a + self.k
 
-    def state_space(self) -> dict[str, np.ndarray]:
-        """The discrete A, B, C, D, K matrices."""
+    def linear_model(self, innovations_variance: float | None = None) -> LinearModel:
+        """The model as a ``LinearModel`` (the observer canonical A, B, C, D = 0 and K) of the
+        detrended record's deviations, in its units.
+
+        Args:
+            innovations_variance: σ² of the one-step prediction errors, when known.
+        """
         n = self.order
         A = np.zeros((n, n))
         A[:, 0] = -self.a
         A[: n - 1, 1:] = np.eye(n - 1)
         C = np.zeros((1, n))
         C[0, 0] = 1.0
-        return {
-            "A": A,
-            "B": self.b.reshape(n, 1),
-            "C": C,
-            "D": np.zeros((1, 1)),
-            "K": self.k.reshape(n, 1),
-        }
-
-    def poles(self) -> np.ndarray:
-        """Eigenvalues of A (roots of z^n + a1 z^(n-1) + ... + an)."""
-        return np.roots(np.concatenate([[1.0], self.a]))
+        return LinearModel(
+            A=A,
+            B=self.b.reshape(n, 1),
+            C=C,
+            D=np.zeros((1, 1)),
+            K=self.k.reshape(n, 1),
+            sample_period_s=self.sample_period_s,
+            innovations_variance=innovations_variance,
+        )
 
     def predictor_poles(self) -> np.ndarray:
         """Eigenvalues of A - K C (roots of C(z)); the predictor is stable when they are inside."""
         return np.roots(np.concatenate([[1.0], self.c]))
-
-    def is_stable(self) -> bool:
-        return bool(np.all(np.abs(self.poles()) < 1.0))
-
-    def dc_gain(self) -> float:
-        """Steady-state output per unit input, B(1) / A(1)."""
-        return float(self.b.sum() / (1.0 + self.a.sum()))
 
     def predict(self, u: np.ndarray, y: np.ndarray, initial_state=None) -> np.ndarray:
         """One-step-ahead prediction ŷ(k | k-1) from x(0) = ``initial_state`` (default: the

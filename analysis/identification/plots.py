@@ -22,7 +22,7 @@ def plot_compare(
 ) -> Path:
     """Measured output against the one-step prediction and the simulation, on each part, with the
     same initial states as the report's figures."""
-    model = fitted.model
+    model = fitted.polynomials
     figure = _figure(11, 3.2 * len(parts))
     axes = figure.subplots(len(parts), 1, squeeze=False)[:, 0]
     estimation = parts[0]
@@ -37,7 +37,7 @@ def plot_compare(
         axis.plot(time_s, one_step, lw=1.2, color="tab:blue", label="1-step prediction")
         axis.plot(time_s, simulated, lw=1.2, color="tab:orange", label="simulation")
         axis.plot(time_s, part.y, lw=0.6, color="black", label="measured")  # drawn on top
-        stability = "" if model.is_stable() else ", UNSTABLE"
+        stability = "" if fitted.model.is_stable() else ", UNSTABLE"
         axis.set_title(
             f"{fitted.method} order {model.order}{stability}, {part.name} part: fit 1-step "
             f"{fit_percent(part.y, one_step):.3f} %, sim {fit_percent(part.y, simulated):.1f} %"
@@ -52,7 +52,7 @@ def plot_compare(
 def plot_residuals(path: str | Path, fitted: FittedModel, parts: list[Part]) -> Path:
     """For each part, the one-step residuals' autocorrelation and their cross-correlation with
     the input, each with its 99 % band."""
-    model = fitted.model
+    model = fitted.polynomials
     figure = _figure(12, 3.0 * len(parts))
     grid = figure.subplots(len(parts), 2, squeeze=False)
     for (auto, cross), part in zip(grid, parts, strict=True):

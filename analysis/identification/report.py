@@ -26,6 +26,8 @@ from maskless.analysis.identification.prediction_error import (
 )
 from maskless.analysis.identification.residual_analysis import residual_correlations
 from maskless.analysis.identification.subspace import default_horizon, estimate_n4sid
+from maskless.errors import ModelError
+from maskless.systems.linear_model import LinearModel
 
 METHODS = ("pem", "armax", "arx", "n4sid")
 
@@ -53,17 +55,45 @@ class FittedModel:
 
     Attributes:
         method: the estimator.
-        model: the model.
+        model: the identified model, identification's result: innovations form with K and the
+            one-step innovations variance on the estimation part, of the detrended record's
+            deviations in its units (the model file adds the offsets and units).
+        polynomials: the same model as the estimator's coefficients (a, b, k), with the x(0)
+            estimated on the estimation part; it runs the figures' predictions.
         estimated_initial_state: whether x(0) was estimated.
         parameters: d, the estimated parameters (initial states included when estimated).
         details: what else the estimator reports (e.g. N4SID's horizon and singular values).
     """
 
     method: str
-    model: InnovationsModel
+    model: LinearModel
+    polynomials: InnovationsModel
     estimated_initial_state: bool
     parameters: int
     details: dict = field(default_factory=dict)
+
+
+def _fitted_model(
+    method: str,
+    polynomials: InnovationsModel,
+    estimation: Part,
+    estimated_initial_state: bool,
+    parameters: int,
+    details: dict | None = None,
+) -> FittedModel:
+    """``polynomials`` fitted on ``estimation`` as a FittedModel, its model carrying the variance
+    of the one-step innovations there."""
+    # Every estimator leaves x(0) at zero when it does not estimate it, so the model's own x(0) is
+    # the one the estimation part's one-step figures use.
+    innovations = estimation.y - polynomials.predict(estimation.u, estimation.y)
+    return FittedModel(
+        method=method,
+        model=polynomials.linear_model(innovations_variance=float(np.mean(innovations**2))),
+        polynomials=polynomials,
+        estimated_initial_state=estimated_initial_state,
+        parameters=parameters,
+        details=details or {},
+    )
 
 
 def fit(
@@ -84,7 +114,7 @@ def fit(
         estimated_initial_state=estimate_initial_state and method != "arx",
     )
     if method in ("pem", "armax"):
-        model = estimate_pem(
+        polynomials = estimate_pem(
             part.u,
             part.y,
             order,
@@ -92,13 +122,13 @@ def fit(
             estimate_initial_state=estimate_initial_state,
             progress=progress,
         )
-        return FittedModel(method, model, estimate_initial_state, count)
+        return _fitted_model(method, polynomials, part, estimate_initial_state, count)
     if method == "arx":
-        model = estimate_arx(part.u, part.y, order, sample_period_s)
-        return FittedModel(method, model, False, count)
+        polynomials = estimate_arx(part.u, part.y, order, sample_period_s)
+        return _fitted_model(method, polynomials, part, False, count)
     if method == "n4sid":
         horizon = default_horizon(order)
-        model, singular_values = estimate_n4sid(
+        polynomials, singular_values = estimate_n4sid(
             part.u,
             part.y,
             order,
@@ -111,13 +141,13 @@ def fit(
             "horizon": horizon,
             "singular_values": singular_values[: 2 * order + 2].tolist(),
         }
-        return FittedModel(method, model, estimate_initial_state, count, details)
+        return _fitted_model(method, polynomials, part, estimate_initial_state, count, details)
     raise ValueError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
 
 
 def initial_state_for_part(fitted: FittedModel, part: Part, estimation: Part, horizon: str):
     """The x(0) a figure uses (see the module docstring)."""
-    model = fitted.model
+    model = fitted.polynomials
     if not fitted.estimated_initial_state:
         return np.zeros(model.order)
     if part is estimation and horizon == "one_step":
@@ -131,7 +161,7 @@ def part_figures(
     """fit_percent_1step, fit_percent_sim, mse, fpe, naic, aic, bic and n of one part, and
     fit_percent_{k}step when ``k_step`` is given; the error figures are those of the one-step
     prediction. Also the residuals' whiteness (share of lags outside the 99 % bands)."""
-    model = fitted.model
+    model = fitted.polynomials
     x0 = initial_state_for_part(fitted, part, estimation, "one_step")
     one_step = model.predict(part.u, part.y, x0)
     simulated = model.simulate(
@@ -161,27 +191,22 @@ def baseline_figures(fitted: FittedModel, parts: list[Part], progress=None) -> d
     """The same structure without input (one-step fit) and the initial state's free response
     (simulation fit), per part."""
     estimation = parts[0]
-    model = fitted.model
+    model = fitted.polynomials
     if fitted.method == "arx":
-        without_input = FittedModel(
-            "ar", estimate_ar(estimation.y, model.order, model.sample_period_s), False, 0
-        )
+        ar = estimate_ar(estimation.y, model.order, model.sample_period_s)
+        without_input = _fitted_model("ar", ar, estimation, False, 0)
     else:
-        without_input = FittedModel(
-            "arma",
-            estimate_pem(
-                estimation.u,
-                estimation.y,
-                model.order,
-                model.sample_period_s,
-                estimate_initial_state=fitted.estimated_initial_state,
-                with_input=False,
-                initial_model=model,  # estimate_pem zeroes b without input
-                progress=progress,
-            ),
-            fitted.estimated_initial_state,
-            0,
+        arma = estimate_pem(
+            estimation.u,
+            estimation.y,
+            model.order,
+            model.sample_period_s,
+            estimate_initial_state=fitted.estimated_initial_state,
+            with_input=False,
+            initial_model=model,  # estimate_pem zeroes b without input
+            progress=progress,
         )
+        without_input = _fitted_model("arma", arma, estimation, fitted.estimated_initial_state, 0)
     figures = {
         "order": model.order,
         "method": fitted.method,
@@ -193,7 +218,7 @@ def baseline_figures(fitted: FittedModel, parts: list[Part], progress=None) -> d
         x0 = initial_state_for_part(without_input, part, estimation, "one_step")
         figures["without_input"][part.name] = {
             "fit_percent_1step": fit_percent(
-                part.y, without_input.model.predict(part.u, part.y, x0)
+                part.y, without_input.polynomials.predict(part.u, part.y, x0)
             )
         }
         x0 = initial_state_for_part(fitted, part, estimation, "simulation")
@@ -273,7 +298,7 @@ def identify(
     naive = naive_figures(parts)
     for order in orders:
         fitted = fit(method, estimation, order, sample_period_s, estimate_initial_state, progress)
-        model = fitted.model
+        model, polynomials = fitted.model, fitted.polynomials
         figures = {part.name: part_figures(fitted, part, estimation, k_step) for part in parts}
         model_baselines = baseline_figures(fitted, parts, progress)
         stable = model.is_stable()
@@ -282,13 +307,13 @@ def identify(
             "method": method,
             "order": order,
             "ts": sample_period_s,
-            **{name: matrix.tolist() for name, matrix in model.state_space().items()},
+            **{name: getattr(model, name).tolist() for name in ("A", "B", "C", "D", "K")},
             "initial_state": "estimated" if fitted.estimated_initial_state else "zero",
             "parameters": fitted.parameters,
             "poles": [[float(p.real), float(p.imag)] for p in model.poles()],
             "stable": stable,
-            "predictor_stable": bool(np.all(np.abs(model.predictor_poles()) < 1)),
-            "dc_gain": model.dc_gain(),
+            "predictor_stable": bool(np.all(np.abs(polynomials.predictor_poles()) < 1)),
+            "dc_gain": _dc_gain(model),
             **fitted.details,
             **figures,
             "margins_on_validation": gains,
@@ -298,9 +323,9 @@ def identify(
         }
         if method == "armax":
             entry["polynomials"] = {
-                "A": [1.0, *model.a.tolist()],
-                "B": [0.0, *model.b.tolist()],
-                "C": [1.0, *model.c.tolist()],
+                "A": [1.0, *polynomials.a.tolist()],
+                "B": [0.0, *polynomials.b.tolist()],
+                "C": [1.0, *polynomials.c.tolist()],
             }
         if not stable:
             entry["warning"] = (
@@ -340,3 +365,11 @@ def identify(
         "verdict": best["verdict"] + (f" Warning: {warnings[0]}." if warnings else ""),
     }
     return report, fitted_models
+
+
+def _dc_gain(model: LinearModel) -> float | None:
+    """The model's DC gain, or None (JSON null) for an integrating model, which has none."""
+    try:
+        return model.dc_gain()
+    except ModelError:
+        return None

@@ -25,19 +25,23 @@ from scipy.optimize import brentq, minimize_scalar
 
 from maskless.analysis.stability.margins import (
     LOWEST_FREQUENCY_FRACTION,
-    DiscreteStateSpace,
     Margins,
     added_delay_samples_loop,
     discrete_margins,
     feedback_loop_poles,
     loop_transfer,
-    stable,
 )
-from maskless.systems.control.offset_free_lqg import OffsetFreeLqgDesign, controller_state_space
+from maskless.systems.control.offset_free_lqg import OffsetFreeLqgDesign
+from maskless.systems.control.offset_free_lqg import (
+    controller_state_space as offset_free_controller_state_space,
+)
 from maskless.systems.control.paper_lqg import LqgDesign
 from maskless.systems.control.paper_lqg import closed_loop_poles as lqg_closed_loop_poles
+from maskless.systems.control.paper_lqg import (
+    controller_state_space as lqg_controller_state_space,
+)
 from maskless.systems.control.valve_allocation import SplitRangeAllocation
-from maskless.systems.paper_parameters import IdentifiedModel
+from maskless.systems.linear_model import LinearModel, stable
 from maskless.systems.plant.pneumatic_design import (
     AllocationPoint,
     allocation_point,
@@ -62,9 +66,9 @@ class LoopAnalysis:
         margins: gain, phase and delay margins of ``loop``.
     """
 
-    plant: DiscreteStateSpace
-    controller: DiscreteStateSpace
-    loop: DiscreteStateSpace
+    plant: LinearModel
+    controller: LinearModel
+    loop: LinearModel
     poles: np.ndarray
     margins: Margins
 
@@ -80,7 +84,7 @@ class LoopAnalysis:
 
 
 def analyze_loop(
-    plant: DiscreteStateSpace, controller: DiscreteStateSpace, n_frequencies: int = 4000
+    plant: LinearModel, controller: LinearModel, n_frequencies: int = 4000
 ) -> LoopAnalysis:
     """Closed-loop poles and margins of ``plant`` closed by ``controller`` as written.
 
@@ -99,7 +103,7 @@ def analyze_loop(
     )
 
 
-def loop_gain_peak(loop: DiscreteStateSpace, n_frequencies: int = 4000) -> tuple[float, float]:
+def loop_gain_peak(loop: LinearModel, n_frequencies: int = 4000) -> tuple[float, float]:
     """(max |L|, the frequency where it occurs (rad/s)) over the margins' band.
 
     The maximum of a log grid of ``n_frequencies`` points from 1e-6 of the Nyquist frequency up to
@@ -134,31 +138,6 @@ def loop_gain_peak(loop: DiscreteStateSpace, n_frequencies: int = 4000) -> tuple
 # --- The paper's LQG on the paper's model ---------------------------------------------------------
 
 
-def identified_plant(model: IdentifiedModel) -> DiscreteStateSpace:
-    """The identified model x+ = A x + B u, y = C x + D u (SI: m and A) as a loop's plant."""
-    return DiscreteStateSpace(model.A, model.B, model.C, model.D, model.sample_period_s)
-
-
-def lqg_controller_model(model: IdentifiedModel, design: LqgDesign) -> DiscreteStateSpace:
-    """The paper's LQG controller at a constant reference, from the output deviation y to the
-    current deviation u: the predictor x̂+ = A x̂ + B u + L (y - C x̂) (Eq. 34) with u = -K x̂, that
-    is x̂+ = (A - B K - L C) x̂ + L y, u = -K x̂ (no feedthrough: the command depends on the
-    estimate only, as in ``paper_lqg.add_paper_lqg``).
-
-    Args:
-        model: the model the gains were designed on (D = 0, as Eq. 26).
-        design: the gains (``paper_lqg.design_lqg``).
-    """
-    A, B, C = model.A, model.B, model.C
-    return DiscreteStateSpace(
-        A - B @ design.K - design.L @ C,
-        design.L,
-        -design.K,
-        np.zeros((1, 1)),
-        model.sample_period_s,
-    )
-
-
 @dataclass(frozen=True)
 class PaperLoopAnalysis:
     """The paper's LQG on the paper's model.
@@ -184,7 +163,7 @@ class PaperLoopAnalysis:
 
 
 def analyze_paper_loop(
-    model: IdentifiedModel, design: LqgDesign, n_frequencies: int = 4000
+    model: LinearModel, design: LqgDesign, n_frequencies: int = 4000
 ) -> PaperLoopAnalysis:
     """Poles, loop gain and margins of the paper's LQG closing the loop on ``model``.
 
@@ -193,7 +172,7 @@ def analyze_paper_loop(
         design: the paper's gains on it (``paper_lqg.design_lqg``).
         n_frequencies: frequency grid of the margins and the loop gain's peak.
     """
-    loop = analyze_loop(identified_plant(model), lqg_controller_model(model, design), n_frequencies)
+    loop = analyze_loop(model, lqg_controller_state_space(model, design), n_frequencies)
     poles = lqg_closed_loop_poles(model, design)
     shift = max(float(np.min(np.abs(poles["open_loop"] - pole))) for pole in poles["regulator"])
     peak, peak_frequency = loop_gain_peak(loop.loop, n_frequencies)
@@ -209,12 +188,6 @@ def analyze_paper_loop(
 
 
 # --- The offset-free LQG on the linearised pneumatic plant ---------------------------------------
-
-
-def offset_free_controller_model(design: OffsetFreeLqgDesign) -> DiscreteStateSpace:
-    """The offset-free LQG (unsaturated, constant reference) from the measured height deviation
-    (m) to the lift command deviation (m) (``offset_free_lqg.controller_state_space``)."""
-    return DiscreteStateSpace(*controller_state_space(design), design.model.sample_period_s)
 
 
 def steady_lift_at_command_m(
@@ -291,7 +264,7 @@ def plant_at_lift(
     lift_m: float,
     sample_period_s: float,
     measurement_delay_samples: int,
-) -> tuple[DiscreteStateSpace, OperatingPoint]:
+) -> tuple[LinearModel, OperatingPoint]:
     """The pneumatic plant as the controller sees it with the head at rest at ``lift_m``: Drake's
     linearisation at the holding command (``pneumatic_design_model``), from the lift command
     deviation to the head height deviation (m), followed by the measurement's delay.
@@ -308,9 +281,9 @@ def plant_at_lift(
         ValueError: ``lift_m`` cannot be held, or the delay is not a whole number >= 0.
     """
     command = command_holding_lift_m(p, allocation, lift_m)
-    # Only A, B and C of the model are used: its operating-point fields describe a design.
-    model = pneumatic_design_model(p, allocation, command, sample_period_s)
-    plant = DiscreteStateSpace(model.A, model.B, model.C, np.zeros((1, 1)), sample_period_s)
+    # Only the dynamics enter the loop: the model's operating output is where the allocation's
+    # nominal head would rest at this command, not ``lift_m``.
+    plant = pneumatic_design_model(p, allocation, command, sample_period_s)
     point = OperatingPoint(lift_m, command, allocation_point(allocation, command))
     return added_delay_samples_loop(plant, measurement_delay_samples), point
 
@@ -386,7 +359,7 @@ def robustness_cases(
                 f"extra_delays_samples: {extra!r} is not a whole number of ticks >= 0"
             ) from None
         delays.append(operator.index(extra))
-    controller = offset_free_controller_model(design)
+    controller = offset_free_controller_state_space(design)
     period = design.model.sample_period_s
     cases = []
     for lift, factor in itertools.product(lifts_m, mass_factors):

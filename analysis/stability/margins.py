@@ -1,8 +1,13 @@
 """Gain, phase and delay margins of a discrete-time SISO loop closed by a dynamic controller.
 
-Both the plant and the controller are single-input, single-output discrete state-space models
+Both the plant and the controller are ``LinearModel``s (``maskless.systems.linear_model``),
+single-input, single-output discrete state spaces
 
-    x(k+1) = A x(k) + B v(k),   w(k) = C x(k) + D v(k),   z = exp(j ω Ts).
+    x(k+1) = A x(k) + B v(k),   w(k) = C x(k) + D v(k),   z = exp(j ω Ts),
+
+of which only the deterministic part (A, B, C, D) enters a loop. The models built here (cascades,
+loop transfers, delayed models) are of deviations: they carry no operating point, units or
+innovations description.
 
 Sign convention: the controller computes the plant input from the plant output *with its own
 sign*, u = K(z) y (an LQG controller's u = -K x̂ already carries the minus sign), and the loop is
@@ -11,8 +16,8 @@ closed loop is the textbook negative-feedback loop: its poles are the zeros of 1
 Nyquist critical point is -1, and the margins below read as usual. Functions that close or open
 the loop take ``sign`` (±1) for a controller written without its sign: u = sign · K(z) y.
 
-Everything here is pure numpy/scipy on arrays, so a margin check can run on an identified model
-without building a Drake diagram.
+Everything here is pure numpy/scipy on the models' arrays, so a margin check can run on an
+identified model without building a Drake diagram.
 """
 
 import math
@@ -21,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.optimize
+
+from maskless.systems.linear_model import LinearModel
 
 # The margin search grid starts this fraction of the Nyquist frequency above zero: crossings below
 # it (six decades under Nyquist) are outside any loop this toolkit closes.
@@ -31,116 +38,9 @@ _EDGE_POLE_TOLERANCE = 1e-6
 # A refined phase crossing must land this close (rad) to -180°; otherwise brentq found the ±180°
 # branch cut of the angle, not a crossing.
 _PHASE_ROOT_TOLERANCE_RAD = 1e-6
-# Largest number of complex entries of one batch of (zI - A) matrices, to bound memory for
-# large models.
-_BATCH_ENTRIES = 2**22
 
 
-def _as_matrix(value, name: str, shape: tuple[int, int], meaning: str) -> np.ndarray:
-    """A finite, read-only float copy of ``value`` with the given shape, or a ValueError."""
-    array = np.array(value, dtype=float)
-    if array.shape != shape:
-        raise ValueError(f"{name} must have shape {shape} ({meaning}), got {array.shape}")
-    if not np.all(np.isfinite(array)):
-        raise ValueError(f"{name} must be finite")
-    array.setflags(write=False)
-    return array
-
-
-def _response_at(A, B, C, D, z: np.ndarray) -> np.ndarray:
-    """C (zI - A)^-1 B + D at each complex z (1-D), solving rather than inverting."""
-    n = A.shape[0]
-    if n == 0:
-        return np.full(z.shape, D[0, 0], dtype=complex)
-    response = np.empty(z.shape, dtype=complex)
-    batch = max(1, _BATCH_ENTRIES // (n * n))
-    identity = np.eye(n)
-    for start in range(0, z.size, batch):
-        zs = z[start : start + batch]
-        resolvent_B = np.linalg.solve(
-            zs[:, None, None] * identity - A, np.broadcast_to(B, (zs.size, n, 1))
-        )
-        response[start : start + batch] = (C @ resolvent_B)[:, 0, 0] + D[0, 0]
-    return response
-
-
-@dataclass(frozen=True, eq=False)  # eq=False: element-wise array equality has no single truth
-class DiscreteStateSpace:
-    """A SISO discrete-time model x(k+1) = A x + B v, w = C x + D v.
-
-    The arrays are stored as read-only float copies. A static gain has n = 0 states: A (0, 0),
-    B (0, 1), C (1, 0), D (1, 1); see ``static_gain``.
-
-    Attributes:
-        A: State matrix (n, n).
-        B: Input matrix (n, 1).
-        C: Output matrix (1, n).
-        D: Feedthrough (1, 1).
-        sample_period_s: Ts (s), positive.
-    """
-
-    A: np.ndarray
-    B: np.ndarray
-    C: np.ndarray
-    D: np.ndarray
-    sample_period_s: float
-
-    def __post_init__(self):
-        A = np.asarray(self.A, dtype=float)
-        if A.ndim != 2 or A.shape[0] != A.shape[1]:
-            raise ValueError(f"A must be a square 2-D array (n, n), got shape {A.shape}")
-        n = A.shape[0]
-        object.__setattr__(self, "A", _as_matrix(A, "A", (n, n), "n x n"))
-        object.__setattr__(self, "B", _as_matrix(self.B, "B", (n, 1), "n x 1, single input"))
-        object.__setattr__(self, "C", _as_matrix(self.C, "C", (1, n), "1 x n, single output"))
-        object.__setattr__(self, "D", _as_matrix(self.D, "D", (1, 1), "SISO feedthrough"))
-        period = self.sample_period_s
-        if isinstance(period, bool) or not isinstance(period, int | float | np.floating):
-            raise ValueError(f"sample_period_s must be a number of seconds, got {period!r}")
-        if not (math.isfinite(period) and period > 0.0):
-            raise ValueError(f"sample_period_s must be positive and finite, got {period}")
-        object.__setattr__(self, "sample_period_s", float(period))
-
-    @classmethod
-    def static_gain(cls, gain: float, sample_period_s: float) -> "DiscreteStateSpace":
-        """A memoryless gain w = gain · v (no states), e.g. a proportional controller."""
-        return cls(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), [[gain]], sample_period_s)
-
-    @property
-    def order(self) -> int:
-        """Number of states n."""
-        return self.A.shape[0]
-
-    @property
-    def nyquist_rad_s(self) -> float:
-        """π / Ts (rad/s)."""
-        return math.pi / self.sample_period_s
-
-    def frequency_response(self, omega_rad_s) -> np.ndarray:
-        """C (zI - A)^-1 B + D at z = exp(j ω Ts).
-
-        Args:
-            omega_rad_s: Frequencies ω (rad/s), any shape, finite.
-
-        Returns:
-            Complex array of the same shape as ``omega_rad_s``.
-
-        Raises:
-            ValueError: if a frequency is not finite.
-            numpy.linalg.LinAlgError: if some z is a pole of the model (on the unit circle).
-        """
-        omega = np.asarray(omega_rad_s, dtype=float)
-        if not np.all(np.isfinite(omega)):
-            raise ValueError("omega_rad_s must be finite")
-        z = np.exp(1j * omega.ravel() * self.sample_period_s)
-        return _response_at(self.A, self.B, self.C, self.D, z).reshape(omega.shape)
-
-    def poles(self) -> np.ndarray:
-        """Eigenvalues of A (complex, n of them)."""
-        return np.linalg.eigvals(self.A).astype(complex)
-
-
-def _same_period(first: DiscreteStateSpace, second: DiscreteStateSpace, names: str) -> None:
+def _same_period(first: LinearModel, second: LinearModel, names: str) -> None:
     if not math.isclose(first.sample_period_s, second.sample_period_s, rel_tol=1e-9):
         raise ValueError(
             f"{names} must share one sample period, got {first.sample_period_s} s and "
@@ -154,14 +54,12 @@ def _check_sign(sign) -> float:
     return float(sign)
 
 
-def _scaled(model: DiscreteStateSpace, factor: float) -> DiscreteStateSpace:
+def _scaled(model: LinearModel, factor: float) -> LinearModel:
     """factor · model (output scaled)."""
-    return DiscreteStateSpace(
-        model.A, model.B, factor * model.C, factor * model.D, model.sample_period_s
-    )
+    return LinearModel(model.A, model.B, factor * model.C, factor * model.D, model.sample_period_s)
 
 
-def series(first: DiscreteStateSpace, second: DiscreteStateSpace) -> DiscreteStateSpace:
+def series(first: LinearModel, second: LinearModel) -> LinearModel:
     """The cascade whose input drives ``first`` and whose output is ``second``'s.
 
     The transfer function is second(z) · first(z); the states are [x_first, x_second].
@@ -178,12 +76,10 @@ def series(first: DiscreteStateSpace, second: DiscreteStateSpace) -> DiscreteSta
     A = np.block([[first.A, np.zeros((n1, n2))], [second.B @ first.C, second.A]])
     B = np.vstack([first.B, second.B @ first.D])
     C = np.hstack([second.D @ first.C, second.C])
-    return DiscreteStateSpace(A, B, C, second.D @ first.D, first.sample_period_s)
+    return LinearModel(A, B, C, second.D @ first.D, first.sample_period_s)
 
 
-def loop_transfer(
-    plant: DiscreteStateSpace, controller: DiscreteStateSpace, sign: int = 1
-) -> DiscreteStateSpace:
+def loop_transfer(plant: LinearModel, controller: LinearModel, sign: int = 1) -> LinearModel:
     """The loop transfer L(z) = -sign · K(z) G(z), broken at the plant input.
 
     With u = sign · K(z) y, the closed loop's poles are the zeros of 1 + L(z) (negative
@@ -203,9 +99,7 @@ def loop_transfer(
     return series(plant, _scaled(controller, -_check_sign(sign)))
 
 
-def _closed_loop_matrix(
-    plant: DiscreteStateSpace, controller: DiscreteStateSpace, sign: float
-) -> np.ndarray:
+def _closed_loop_matrix(plant: LinearModel, controller: LinearModel, sign: float) -> np.ndarray:
     """The state matrix of [x_plant; x_controller] with u = sign · (Cc xc + Dc y), y = C x + D u."""
     G, K = plant, controller
     # The feedthroughs form an algebraic loop u = sign Dc (C x + D u) + ...; it is well posed only
@@ -224,9 +118,7 @@ def _closed_loop_matrix(
     return np.block([[G.A + G.B @ u_x, G.B @ u_c], [K.B @ y_x, K.A + K.B @ y_c]])
 
 
-def feedback_loop_poles(
-    plant: DiscreteStateSpace, controller: DiscreteStateSpace, sign: int = 1
-) -> np.ndarray:
+def feedback_loop_poles(plant: LinearModel, controller: LinearModel, sign: int = 1) -> np.ndarray:
     """Closed-loop poles of the plant with u = sign · K(z) y.
 
     The default ``sign=+1`` closes the loop exactly as the controller is written (the controller
@@ -250,7 +142,7 @@ def feedback_loop_poles(
     return np.linalg.eigvals(matrix).astype(complex)
 
 
-def added_delay_samples_loop(loop: DiscreteStateSpace, delay_samples: int) -> DiscreteStateSpace:
+def added_delay_samples_loop(loop: LinearModel, delay_samples: int) -> LinearModel:
     """``loop`` followed by a pure delay z^-d, for latency robustness checks.
 
     The delay is a shift register of d states after the output, so the result has n + d states
@@ -282,27 +174,7 @@ def added_delay_samples_loop(loop: DiscreteStateSpace, delay_samples: int) -> Di
     B = np.vstack([loop.B, first @ loop.D])
     C = np.zeros((1, n + d))
     C[0, -1] = 1.0
-    return DiscreteStateSpace(A, B, C, np.zeros((1, 1)), loop.sample_period_s)
-
-
-def stable(poles, tol: float = 0.0) -> bool:
-    """True when every pole lies strictly inside the circle of radius 1 - tol.
-
-    Args:
-        poles: Complex poles, 1-D (an empty set is stable).
-        tol: Stability margin on the radius, 0 <= tol < 1.
-
-    Raises:
-        ValueError: if ``poles`` is not 1-D and finite, or ``tol`` is outside [0, 1).
-    """
-    poles = np.asarray(poles)
-    if poles.ndim != 1:
-        raise ValueError(f"poles must be a 1-D array (n,), got shape {poles.shape}")
-    if not np.all(np.isfinite(poles)):
-        raise ValueError("poles must be finite")
-    if not (0.0 <= tol < 1.0):
-        raise ValueError(f"tol must lie in [0, 1), got {tol}")
-    return bool(np.all(np.abs(poles) < 1.0 - tol))
+    return LinearModel(A, B, C, np.zeros((1, 1)), loop.sample_period_s)
 
 
 @dataclass(frozen=True)
@@ -347,11 +219,11 @@ def json_safe(value: float) -> float | str | None:
     return float(value)
 
 
-def _band_edge_response(loop: DiscreteStateSpace, z: float) -> float | None:
+def _band_edge_response(loop: LinearModel, z: float) -> float | None:
     """L at z = ±1 (real there), or None when an open-loop pole sits on that edge."""
     if loop.order and np.min(np.abs(loop.poles() - z)) < _EDGE_POLE_TOLERANCE:
         return None
-    return float(_response_at(loop.A, loop.B, loop.C, loop.D, np.array([z + 0j]))[0].real)
+    return float(loop.transfer_function(np.array([z + 0j]))[0].real)
 
 
 def _refined_roots(function, omega: np.ndarray, values: np.ndarray, ok: np.ndarray) -> list:
@@ -366,7 +238,7 @@ def _refined_roots(function, omega: np.ndarray, values: np.ndarray, ok: np.ndarr
     return roots
 
 
-def discrete_margins(loop: DiscreteStateSpace, n_frequencies: int = 4000) -> Margins:
+def discrete_margins(loop: LinearModel, n_frequencies: int = 4000) -> Margins:
     """Gain, phase and delay margins of L(exp(j ω Ts)) for 0 <= ω <= π/Ts.
 
     Crossings are bracketed on a log grid of ``n_frequencies`` points from 1e-6 · π/Ts up to and

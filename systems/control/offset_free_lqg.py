@@ -36,38 +36,16 @@ from pydrake.symbolic import MakeVectorVariable, Variable
 from pydrake.systems.controllers import DiscreteTimeLinearQuadraticRegulator
 from pydrake.systems.framework import DiagramBuilder
 
+from maskless.errors import ModelError
 from maskless.systems.config_loading import UNSET
 from maskless.systems.control.valve_allocation import SplitRangeAllocation
+from maskless.systems.linear_model import LinearModel
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
     building_expressions,
     diagram_form,
 )
-from maskless.systems.paper_parameters import IdentifiedModel, discrete_dc_gain
-
-
-@dataclass(frozen=True)
-class LinearDesignModel:
-    """A discrete model x+ = A x + B u, y = C x of deviations from an operating point.
-
-    Attributes:
-        A, B, C: matrices (n x n, n x 1, 1 x n).
-        sample_period_s: the controller's period the model is discretised at.
-        input_operating_point: the command u is a deviation from this (the allocation's units).
-        output_operating_point_m: y is the head height's deviation from this (m).
-    """
-
-    A: np.ndarray
-    B: np.ndarray
-    C: np.ndarray
-    sample_period_s: float
-    input_operating_point: float
-    output_operating_point_m: float
-
-    def dc_gain(self) -> float:
-        """Steady output per unit steady input."""
-        return discrete_dc_gain(self.A, self.B, self.C)
 
 
 @dataclass
@@ -114,7 +92,7 @@ class OffsetFreeLqgDesign:
         command_per_reference: N_u, steady command per unit reference deviation.
     """
 
-    model: LinearDesignModel
+    model: LinearModel
     measurement_delay_samples: int
     K: np.ndarray
     M: np.ndarray
@@ -136,37 +114,11 @@ class OffsetFreeLqgDesign:
         )
 
 
-def design_model_from_identified(
-    model: IdentifiedModel, camera_height_m: float | None
-) -> LinearDesignModel:
-    """An identified model (input a valve current) as a design model of the head height.
-
-    Args:
-        model: the identified model in SI.
-        camera_height_m: for a model whose output is the camera-to-head distance (the paper's),
-            the camera's height above the table; None when the output is the head height.
-    """
-    if camera_height_m is None:
-        C, output_operating_point = model.C, model.operating_output_m
-    else:
-        C, output_operating_point = -model.C, camera_height_m - model.operating_output_m
-    return LinearDesignModel(
-        A=model.A,
-        B=model.B,
-        C=C,
-        sample_period_s=model.sample_period_s,
-        input_operating_point=model.operating_input_a,
-        output_operating_point_m=output_operating_point,
-    )
-
-
-def augment_for_estimation(model: LinearDesignModel, measurement_delay_samples: int = 0):
+def augment_for_estimation(model: LinearModel, measurement_delay_samples: int = 0):
     """(A_a, B_a, C_a) of x+ = A x + B (u + d), d+ = d, z1+ = C x, z(i+1)+ = z(i), and the
     measurement y = z(delay) (y = C x with no delay)."""
     if measurement_delay_samples < 0:
-        raise ValueError(
-            f"measurement_delay_samples must be >= 0, got {measurement_delay_samples}"
-        )
+        raise ValueError(f"measurement_delay_samples must be >= 0, got {measurement_delay_samples}")
     n, delay = model.A.shape[0], measurement_delay_samples
     size = n + 1 + delay
     A_a = np.zeros((size, size))
@@ -184,34 +136,43 @@ def augment_for_estimation(model: LinearDesignModel, measurement_delay_samples: 
     return A_a, B_a, C_a
 
 
-def steady_targets(model: LinearDesignModel) -> tuple[np.ndarray, float]:
-    """(N_x, N_u): the equilibrium (I - A) x = B u with C x = 1, solved exactly."""
-    n = model.A.shape[0]
-    lhs = np.block([[np.eye(n) - model.A, -model.B], [model.C, np.zeros((1, 1))]])
-    rhs = np.concatenate([np.zeros(n), [1.0]])
-    try:
-        solution = np.linalg.solve(lhs, rhs)
-    except np.linalg.LinAlgError:
-        raise ValueError(
-            "the design model has no steady state that holds its output at a reference (its "
-            "input does not reach the output in steady state)"
-        ) from None
-    return solution[:n], float(solution[n])
-
-
 def design_offset_free_lqg(
-    model: LinearDesignModel, weights: OffsetFreeLqgWeights, measurement_delay_samples: int = 0
+    model: LinearModel, weights: OffsetFreeLqgWeights, measurement_delay_samples: int = 0
 ) -> OffsetFreeLqgDesign:
     """LQR and steady Kalman gains for ``model`` with an input-disturbance estimate, for a
-    measurement ``measurement_delay_samples`` ticks old."""
+    measurement ``measurement_delay_samples`` ticks old.
+
+    Args:
+        model: the plant's model, its output the head height (m); D = 0.
+        weights: the design weights.
+        measurement_delay_samples: ticks between the head's height and the measurement.
+
+    Raises:
+        ModelError: a model with feedthrough, an integrating model (a pole at z = 1, which it
+            names) or one whose input holds no output in steady state: the weights are given per
+            metre of steady height, so the design needs a bounded, nonzero DC gain.
+    """
+    if model.D[0, 0] != 0.0:
+        raise ModelError(
+            f"D = {model.D[0, 0]}: the offset-free design needs a model without feedthrough (the "
+            "command acts after the tick that measured)"
+        )
     n = model.A.shape[0]
-    N_x, N_u = steady_targets(model)
+    try:
+        N_x, N_u = model.steady_target()
+    except ModelError as error:
+        raise ModelError(
+            f"{error}; the offset-free design weighs the command and the disturbance per metre "
+            "of the height they hold in steady state, so it needs a bounded, nonzero DC gain: "
+            "identify a model whose slowest pole is stable and whose input moves the output"
+        ) from None
     state_scale = _output_scaled_identity(N_x)
     Q = weights.output_error_weight_per_m2 * (
         model.C.T @ model.C + weights.state_weight_fraction * state_scale
     )
-    # Weights on the command's height equivalent g u, with g the DC gain (m per command unit).
-    height_per_command = _height_per_command(model, N_u)
+    # Weights on the command's height equivalent g u, with g the DC gain (m per command unit),
+    # here from the steady target already solved (C N_x = 1 with N_u holding it): g = 1 / N_u.
+    height_per_command = 1.0 / N_u
     R = np.array([[weights.command_weight_per_m2 * height_per_command**2]])
     K, _ = DiscreteTimeLinearQuadraticRegulator(model.A, model.B, Q, R)
     A_a, B_a, C_a = augment_for_estimation(model, measurement_delay_samples)
@@ -236,30 +197,6 @@ def design_offset_free_lqg(
     )
 
 
-# A model pole closer than this to z = 1 is an integrator: its DC gain is unbounded (or
-# meaningless), so the command cannot be weighed by the height it holds.
-_INTEGRATOR_DISTANCE = 1e-6
-
-
-def _height_per_command(model: LinearDesignModel, N_u: float) -> float:
-    """The model's DC gain 1 / N_u, refused for an integrating model (and for one whose input
-    holds no height at all)."""
-    poles = np.linalg.eigvals(model.A)
-    closest = poles[np.argmin(np.abs(1.0 - poles))]
-    if abs(1.0 - closest) < _INTEGRATOR_DISTANCE or N_u == 0.0:
-        raise ValueError(
-            f"the design model has a pole at z = {_format_pole(closest)} (an integrator, or "
-            "next to one): its steady height per command is unbounded, so the command and "
-            "disturbance weights, given per metre of steady height, cannot be applied; "
-            "identify a model with a stable slowest pole"
-        )
-    return 1.0 / N_u
-
-
-def _format_pole(pole: complex) -> str:
-    return f"{pole.real:.9g}" if pole.imag == 0 else f"{complex(pole):.9g}"
-
-
 def _output_scaled_identity(N_x: np.ndarray) -> np.ndarray:
     """A diagonal that weighs each state as much as the output it would produce in steady state
     (N_x per unit output), so one number weighs states of any units (Pa, m, A) evenly."""
@@ -277,19 +214,30 @@ def closed_loop_poles(design: OffsetFreeLqgDesign) -> dict[str, np.ndarray]:
     }
 
 
-def controller_state_space(design: OffsetFreeLqgDesign):
-    """(A_c, B_c, C_c, D_c) of the unsaturated controller from the measured height deviation y
-    to the command deviation u at a constant reference (Δr = 0), with the predicted estimate as
-    state: z̄ = z + M (y - C_a z), u = -F z̄, z+ = A_a z̄ + B_a u, where F = [K, 1, 0...]
-    (the disturbance estimate is subtracted from the command). The sign is the controller's own
-    (u = C_c z + D_c y), as ``analysis.stability.margins`` expects."""
+def controller_state_space(design: OffsetFreeLqgDesign) -> LinearModel:
+    """The unsaturated controller from the measured height deviation y to the command deviation u
+    at a constant reference (Δr = 0), with the predicted estimate as state: z̄ = z + M (y - C_a z),
+    u = -F z̄, z+ = A_a z̄ + B_a u, where F = [K, 1, 0...] (the disturbance estimate is subtracted
+    from the command). The sign is the controller's own (u = C_c z + D_c y), as
+    ``analysis.stability.margins`` expects."""
+    model = design.model
     size = design.augmented_A.shape[0]
-    n = design.model.A.shape[0]
+    n = model.A.shape[0]
     F = np.zeros((1, size))
     F[0, :n], F[0, n] = design.K[0], 1.0
     correct = np.eye(size) - design.M @ design.augmented_C
     closed = design.augmented_A - design.augmented_B @ F
-    return closed @ correct, closed @ design.M, -F @ correct, -F @ design.M
+    return LinearModel(
+        closed @ correct,
+        closed @ design.M,
+        -F @ correct,
+        -F @ design.M,
+        model.sample_period_s,
+        operating_input=model.operating_output,
+        operating_output=model.operating_input,
+        input_unit=model.output_unit,
+        output_unit=model.input_unit,
+    )
 
 
 @building_expressions
@@ -328,8 +276,8 @@ def add_offset_free_lqg(
     """
     model = design.model
     n = model.A.shape[0]
-    low, high = (c - model.input_operating_point for c in allocation.command_range)
-    start_deviation = initial_height_m - model.output_operating_point_m
+    low, high = (c - model.operating_input for c in allocation.command_range)
+    start_deviation = initial_height_m - model.operating_output
     start_state = design.estimator_state_at(start_deviation)
     size = start_state.size
     start_command = float(np.clip(design.command_per_reference * start_deviation, low, high))
@@ -338,18 +286,16 @@ def add_offset_free_lqg(
     # [x̂⁻, d̂, delayed heights] before this tick's correction
     predicted = np.array([start_state[k] + predicted_offset[k] for k in range(size)])
     held_command = start_command + held_command_offset
-    start_currents = [
-        float(c) for c in allocation.currents(model.input_operating_point + start_command)
-    ]
+    start_currents = [float(c) for c in allocation.currents(model.operating_input + start_command)]
     current_offsets = MakeVectorVariable(2, "current_offset")
     fused = MakeVectorVariable(2, "fused_estimated_state")
     reference = Variable("reference_head_height_m")
 
-    measured = fused[0] - model.output_operating_point_m
+    measured = fused[0] - model.operating_output
     innovation = measured - (design.augmented_C @ predicted)[0]
     corrected = predicted + design.M[:, 0] * innovation
     x_hat, d_hat = corrected[:n], corrected[n]
-    reference_deviation = reference - model.output_operating_point_m
+    reference_deviation = reference - model.operating_output
     command = (
         design.command_per_reference * reference_deviation
         - d_hat
@@ -360,7 +306,7 @@ def add_offset_free_lqg(
 
     # The currents are computed at the tick and held as state: the plant reads them every step,
     # and a state output costs nothing to evaluate.
-    next_currents = allocation.currents(model.input_operating_point + applied)
+    next_currents = allocation.currents(model.operating_input + applied)
     return add_named_symbolic_system(
         builder,
         name,
@@ -368,7 +314,7 @@ def add_offset_free_lqg(
         outputs=[
             ("inlet_valve_current_a", [start_currents[0] + current_offsets[0]]),
             ("outlet_valve_current_a", [start_currents[1] + current_offsets[1]]),
-            ("command", [model.input_operating_point + held_command]),
+            ("command", [model.operating_input + held_command]),
         ],
         state=[*predicted_offset, held_command_offset, *current_offsets],
         dynamics=[

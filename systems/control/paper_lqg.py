@@ -21,6 +21,8 @@ from pydrake.systems.controllers import DiscreteTimeLinearQuadraticRegulator
 from pydrake.systems.estimators import DiscreteTimeSteadyStateKalmanFilter
 from pydrake.systems.framework import DiagramBuilder
 
+from maskless.errors import ModelError
+from maskless.systems.linear_model import LinearModel
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
@@ -28,7 +30,6 @@ from maskless.systems.named_symbolic_system import (
     diagram_form,
 )
 from maskless.systems.paper_parameters import (
-    IdentifiedModel,
     LqgWeights,
     PaperParameters,
     paper_identified_model,
@@ -47,7 +48,10 @@ class LqgDesign:
         L: the estimator's predictor gain (dimensionless for a distance model).
         state_for_output: N_x, the state that sets the regulator's target for a reference r: the
             controller regulates x̂ towards N_x r. The paper's regulator has no feedforward path
-            (N_u = 0), so N_x is the least-squares solution of (I - A) N_x = 0, C N_x = 1.
+            (N_u = 0), so N_x is the model's steady target with the input held
+            (``LinearModel.steady_target(hold_input=True)``): the least-squares solution of
+            (I - A) N_x = 0, C N_x = 1, which for Eq. 26 is about [1, 1] (both states are the
+            output at consecutive samples).
     """
 
     K: np.ndarray
@@ -56,47 +60,65 @@ class LqgDesign:
     state_for_output: np.ndarray
 
 
-def design_lqg(model: IdentifiedModel, weights: LqgWeights) -> LqgDesign:
-    """The paper's LQG gains for ``model`` with ``weights`` (Eq. 29-34)."""
+def design_lqg(model: LinearModel, weights: LqgWeights) -> LqgDesign:
+    """The paper's LQG gains for ``model`` with ``weights`` (Eq. 29-34).
+
+    Raises:
+        ModelError: ``model`` has a feedthrough D (the controller's command depends on its
+            estimate only, so the paper's loop has none).
+    """
+    if model.D[0, 0] != 0.0:
+        raise ModelError(f"D = {model.D[0, 0]}: the paper's LQG needs a model without feedthrough")
     K, S = DiscreteTimeLinearQuadraticRegulator(model.A, model.B, weights.Q, weights.R)
     L = DiscreteTimeSteadyStateKalmanFilter(model.A, model.C, weights.W, weights.V)
-    return LqgDesign(K=K, S=S, L=L, state_for_output=steady_state_per_output(model))
+    state_for_output, _ = model.steady_target(hold_input=True)
+    return LqgDesign(K=K, S=S, L=L, state_for_output=state_for_output)
 
 
-def paper_lqg(paper: PaperParameters) -> tuple[IdentifiedModel, LqgDesign]:
+def paper_lqg(paper: PaperParameters) -> tuple[LinearModel, LqgDesign]:
     """The paper's model (Eq. 26) and its LQG gains from the paper's weights."""
     model = paper_identified_model(paper)
     return model, design_lqg(model, paper_lqg_weights(paper))
 
 
-def steady_state_per_output(model: IdentifiedModel) -> np.ndarray:
-    """N_x: a state that is an equilibrium with zero input deviation at unit output.
-
-    For the paper's model the equilibria of x(k+1) = A x are the multiples of [1, 1] only if A has
-    an eigenvalue at 1; it does not, so in general we take the state on the output direction that
-    best satisfies x = A x (least squares), which for Eq. 26 is [1, 1] (both states are the output
-    at consecutive samples).
-    """
-    n = model.A.shape[0]
-    lhs = np.vstack([np.eye(n) - model.A, model.C])
-    rhs = np.concatenate([np.zeros(n), [1.0]])
-    solution, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
-    return solution
-
-
-def closed_loop_poles(model: IdentifiedModel, design: LqgDesign) -> dict[str, np.ndarray]:
+def closed_loop_poles(model: LinearModel, design: LqgDesign) -> dict[str, np.ndarray]:
     """Eigenvalues of the open loop A, the regulator A - B K and the estimator A - L C."""
     return {
-        "open_loop": np.linalg.eigvals(model.A),
+        "open_loop": model.poles(),
         "regulator": np.linalg.eigvals(model.A - model.B @ design.K),
         "estimator": np.linalg.eigvals(model.A - design.L @ model.C),
     }
 
 
+def controller_state_space(model: LinearModel, design: LqgDesign) -> LinearModel:
+    """The paper's LQG controller at a constant reference, from the output deviation y to the
+    current deviation u: the predictor x̂+ = A x̂ + B u + L (y - C x̂) (Eq. 34) with u = -K x̂, that
+    is x̂+ = (A - B K - L C) x̂ + L y, u = -K x̂ (no feedthrough: the command depends on the
+    estimate only, as in ``add_paper_lqg``). The sign is the controller's own, as
+    ``analysis.stability.margins`` expects.
+
+    Args:
+        model: the model the gains were designed on.
+        design: the gains (``design_lqg``).
+    """
+    A, B, C = model.A, model.B, model.C
+    return LinearModel(
+        A - B @ design.K - design.L @ C,
+        design.L,
+        -design.K,
+        np.zeros((1, 1)),
+        model.sample_period_s,
+        operating_input=model.operating_output,
+        operating_output=model.operating_input,
+        input_unit=model.output_unit,
+        output_unit=model.input_unit,
+    )
+
+
 @building_expressions
 def add_paper_lqg(
     builder: DiagramBuilder,
-    model: IdentifiedModel,
+    model: LinearModel,
     design: LqgDesign,
     camera_height_m: float,
     valve_currents_a: tuple[float, float],
@@ -140,14 +162,14 @@ def add_paper_lqg(
 
     def model_output(height):
         """A head height as the model's output: distance below the camera, minus d_op."""
-        return camera_height_m - height - model.operating_output_m
+        return camera_height_m - height - model.operating_output
 
     innovation = model_output(fused[0]) - (C @ x_hat)[0]
     # The model's input is the current after the valve's static map (the Hammerstein structure it
     # was identified with), so the estimator sees what the valve passes, not what was asked.
     passed = effective_valve_current(applied, *valve_currents_a)
-    next_x_hat = A @ x_hat + B[:, 0] * (passed - model.operating_input_a) + L[:, 0] * innovation
-    command = model.operating_input_a - (K @ (x_hat - design.state_for_output * held_reference))[0]
+    next_x_hat = A @ x_hat + B[:, 0] * (passed - model.operating_input) + L[:, 0] * innovation
+    command = model.operating_input - (K @ (x_hat - design.state_for_output * held_reference))[0]
     return add_named_symbolic_system(
         builder,
         name,

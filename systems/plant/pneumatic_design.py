@@ -17,11 +17,11 @@ import numpy as np
 from pydrake.systems.primitives import Linearize
 from scipy.linalg import expm
 
-from maskless.systems.control.offset_free_lqg import LinearDesignModel
 from maskless.systems.control.valve_allocation import (
     SplitRangeAllocation,
     allocation_from_steady_lift,
 )
+from maskless.systems.linear_model import LinearModel
 from maskless.systems.plant.pneumatic_physics import (
     GAUGE_PRESSURE,
     INLET_SPOOL,
@@ -163,20 +163,35 @@ def pneumatic_design_model(
     allocation: SplitRangeAllocation,
     operating_lift_m: float,
     sample_period_s: float,
-) -> LinearDesignModel:
+) -> LinearModel:
     """The plant linearised at ``operating_lift_m`` and discretised, with the lift command as
     input: the moving valve's current column (the inlet's over its range, the outlet's below it)
-    scaled by the allocation's current per metre there."""
+    scaled by the allocation's current per metre there.
+
+    Args:
+        p: the plant's parameters (the nominal head, whose steady lift the allocation inverts).
+        allocation: the split-range allocation from the lift command to the valve currents.
+        operating_lift_m: the lift command the model is linearised at (m); the nominal head rests
+            at this lift.
+        sample_period_s: the controller's period (s).
+
+    Returns:
+        The model from the lift command (m) to the head height (m), operating at that command
+        and the height the head rests at there.
+    """
     point = allocation_point(allocation, operating_lift_m)
     A, B, C = linearize_pneumatic_plant(
         p, point.inlet_current_a, point.outlet_current_a, point.valve
     )
     Ad, Bd = zero_order_hold(A, B * point.amps_per_command, sample_period_s)
-    return LinearDesignModel(
+    return LinearModel(
         A=Ad,
         B=Bd,
         C=C,
+        D=np.zeros((1, 1)),
         sample_period_s=sample_period_s,
-        input_operating_point=operating_lift_m,
-        output_operating_point_m=p.rest_head_height_m + operating_lift_m,
+        operating_input=operating_lift_m,
+        operating_output=p.rest_head_height_m + operating_lift_m,
+        input_unit="m",
+        output_unit="m",
     )

@@ -27,7 +27,8 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 
 from maskless.analysis.metrics import tracking_metrics
-from maskless.diagrams.closed_loop import NominalPneumatic, add_plant
+from maskless.diagrams.closed_loop import add_plant
+from maskless.diagrams.controller_design import NominalPneumatic
 from maskless.diagrams.scenario import load_scenario
 from maskless.diagrams.simulation import simulate
 from maskless.systems.plant.pneumatic_design import steady_lift_curve

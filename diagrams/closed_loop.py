@@ -7,7 +7,6 @@ The plant is the pneumatic "real robot", the paper's identified model or a model
 controller is the offset-free LQG or the paper's LQG (which drives the inlet only).
 """
 
-import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -21,34 +20,32 @@ from pydrake.systems.primitives import (
 )
 from pydrake.trajectories import PiecewisePolynomial
 
-from maskless.analysis.identification.model_file import load_identified_model
+from maskless.diagrams.controller_design import (
+    NominalPneumatic,
+    linear_plant_model,
+    offset_free_design,
+    paper_valve_currents_a,
+)
 from maskless.diagrams.scenario import (
-    OffsetFreeLqg,
     PaperLqg,
-    PaperPlant,
     PneumaticPlant,
     ReferenceConfig,
     Scenario,
     kind_name,
-    shorthand,
 )
-from maskless.errors import ConfigError
-from maskless.systems.control.offset_free_lqg import add_offset_free_lqg, design_offset_free_lqg
+from maskless.systems.control.offset_free_lqg import add_offset_free_lqg
 from maskless.systems.control.paper_lqg import add_paper_lqg, paper_lqg
-from maskless.systems.control.valve_allocation import SplitRangeAllocation, current_split_allocation
 from maskless.systems.linear_model import LinearModel
-from maskless.systems.paper_parameters import paper_filter_variances_si, paper_identified_model
+from maskless.systems.paper_parameters import paper_filter_variances_si
 from maskless.systems.plant.linear_model_plant import (
     add_linear_model_plant,
     operating_head_height_m,
 )
-from maskless.systems.plant.pneumatic_design import pneumatic_allocation, pneumatic_design_model
-from maskless.systems.plant.pneumatic_physics import LIFT, PneumaticParameters
+from maskless.systems.plant.pneumatic_physics import LIFT
 from maskless.systems.plant.pneumatic_plant import add_pneumatic_plant, equilibrium_state
-from maskless.systems.sensing.depth_sensor import add_depth_sensor, latency_frames
+from maskless.systems.sensing.depth_sensor import add_depth_sensor
 from maskless.systems.sensing.local_kalman_filter import add_local_kalman_filter
 from maskless.systems.sensing.track_fusion import add_track_fusion
-from maskless.systems.units import ma_to_a
 
 # Far beyond any run, so the last reference value holds for the rest of the simulation.
 _REFERENCE_HOLD_S = 1.0e9
@@ -92,14 +89,12 @@ class ClosedLoop:
 
 @dataclass
 class AddedPlant:
-    """An added plant's ports and what the controller design needs from it."""
+    """An added plant's ports and where its head starts (m above the table)."""
 
     inlet: InputPort
     outlet: InputPort
     head_height: OutputPort
     start_height_m: float
-    model: LinearModel | None = None
-    camera_height_m: float | None = None
 
 
 def make_reference_trajectory(reference: ReferenceConfig, start_height_m: float):
@@ -130,42 +125,11 @@ def _add_loggers(builder: DiagramBuilder, logged: dict) -> dict[str, tuple[Vecto
     return loggers
 
 
-@dataclass
-class NominalPneumatic:
-    """What a controller may know of the pneumatic plant: the nominal head's parameters and their
-    Hammerstein inverse. Built once per loop: the inverse samples 400 steady states."""
-
-    parameters: PneumaticParameters
-    allocation: SplitRangeAllocation
-
-    @classmethod
-    def of(cls, config: Scenario) -> "NominalPneumatic":
-        p = config.pneumatic
-        nominal = dataclasses.replace(p, head_mass_kg=p.nominal_head_mass_kg)
-        allocation = pneumatic_allocation(nominal, config.offset_free_lqg.outlet_full_open_below_m)
-        return cls(nominal, allocation)
-
-
-def _paper_valve_currents_a(paper) -> tuple[float, float]:
-    """The paper valve's (starting, saturation) currents (A)."""
-    return ma_to_a(paper.valve_starting_current_ma), ma_to_a(paper.valve_saturation_current_ma)
-
-
-def inlet_current_range_a(config: Scenario) -> tuple[float, float]:
-    """The (starting, saturation) currents of the inlet valve of ``config.plant`` (A): the
-    pneumatic plant's own valve, or the paper's valve in front of a linear model."""
-    if isinstance(config.plant, PneumaticPlant):
-        inlet = config.pneumatic.inlet
-        return inlet.starting_current_a, inlet.saturation_current_a
-    return _paper_valve_currents_a(config.paper)
-
-
 def add_plant(
     builder: DiagramBuilder, config: Scenario, nominal: "NominalPneumatic | None"
 ) -> AddedPlant:
     """Adds ``config.plant``, at rest at ``config.start_lift_m`` for the pneumatic plant (whose
     starting currents come from ``nominal``'s allocation) or at the model's operating point."""
-    paper = config.paper
     if isinstance(config.plant, PneumaticPlant):
         p = config.pneumatic
         start_inlet_a, start_outlet_a = nominal.allocation.currents(config.start_lift_m)
@@ -177,17 +141,12 @@ def add_plant(
             head_height=plant.outputs["head_height_m"],
             start_height_m=p.rest_head_height_m + state[LIFT],
         )
-    if isinstance(config.plant, PaperPlant):
-        # The model was identified on the fused distance in the Kinect v2 frame (Sec. III-B).
-        camera_height_m = config.cameras[config.plant.camera].mount_height_m
-        model = paper_identified_model(paper)
-    else:
-        model, camera_height_m = load_identified_model(config.plant.model_file), None
+    model, camera_height_m = linear_plant_model(config)
     plant = add_linear_model_plant(
         builder,
         model,
         camera_height_m,
-        *_paper_valve_currents_a(paper),
+        *paper_valve_currents_a(config.paper),
         name=f"{kind_name(config.plant)}_plant",
     )
     return AddedPlant(
@@ -195,56 +154,7 @@ def add_plant(
         outlet=plant.inputs["outlet_valve_current_a"],
         head_height=plant.outputs["head_height_m"],
         start_height_m=operating_head_height_m(model, camera_height_m),
-        model=model,
-        camera_height_m=camera_height_m,
     )
-
-
-def pneumatic_offset_free_design(config: Scenario, nominal: "NominalPneumatic"):
-    """The offset-free LQG for the pneumatic plant: designed on the nominal head's plant
-    linearised at the configured operating lift, for the configured cameras' measurement delay
-    (the model's output is the head height itself)."""
-    settings = config.offset_free_lqg
-    model = pneumatic_design_model(
-        nominal.parameters,
-        nominal.allocation,
-        settings.operating_lift_m,
-        settings.sample_period_s,
-    )
-    return design_offset_free_lqg(model, settings.weights, measurement_delay_samples(config))
-
-
-def _offset_free_design(
-    config: Scenario, controller: OffsetFreeLqg, plant: AddedPlant, nominal
-):
-    """(design, allocation) of the offset-free LQG for ``plant``: on the pneumatic plant's
-    linearisation, or on the identified model ``controller`` (or the plant) names."""
-    settings = config.offset_free_lqg
-    designed_on_plant = not controller.design_model_file
-    if designed_on_plant and isinstance(config.plant, PneumaticPlant):
-        return pneumatic_offset_free_design(config, nominal), nominal.allocation
-    if designed_on_plant:
-        identified, camera_height_m = plant.model, plant.camera_height_m
-    else:
-        identified = load_identified_model(controller.design_model_file)
-        camera_height_m = None
-    # The design's output is the head height: a camera distance (the paper's model) is turned
-    # into one with the camera's height.
-    if camera_height_m is None:
-        model = identified
-    else:
-        model = identified.output_subtracted_from(camera_height_m)
-    try:
-        # An identified model's output is the fused estimate as logged at a tick, after that
-        # tick's update; the controller reads it one tick later.
-        weights = dataclasses.replace(
-            settings.weights, process_noise_m2=settings.identified_model_process_noise_m2
-        )
-        design = design_offset_free_lqg(model, weights, measurement_delay_samples=1)
-    except ValueError as error:
-        raise ConfigError(f"controller {shorthand(controller)!r}: {error}") from None
-    allocation = current_split_allocation(config.pneumatic.inlet, config.pneumatic.outlet)
-    return design, allocation
 
 
 @dataclass
@@ -325,17 +235,6 @@ def export_and_log(
     return _add_loggers(builder, logged)
 
 
-def measurement_delay_samples(config: Scenario) -> int:
-    """Controller ticks between the head's height and the fused estimate the controller reads:
-    the slowest camera's latency (whole frames), plus one tick because the controller reads the
-    local filters' state as it was before its own tick (fusion passes it straight through)."""
-    period_s = config.offset_free_lqg.sample_period_s
-    latency_s = max(
-        latency_frames(camera) / camera.frame_rate_hz for camera in config.cameras.values()
-    )
-    return round(latency_s / period_s) + 1
-
-
 def build_closed_loop(
     config: Scenario, record: bool = True, nominal: "NominalPneumatic | None" = None
 ) -> ClosedLoop:
@@ -367,7 +266,7 @@ def build_closed_loop(
 
     if isinstance(config.controller, PaperLqg):
         model, design = paper_lqg(paper)
-        valve_currents_a = _paper_valve_currents_a(paper)
+        valve_currents_a = paper_valve_currents_a(paper)
         saturation_current_a = valve_currents_a[1]
         camera_height_m = config.cameras[config.controller.camera].mount_height_m
         controller = add_paper_lqg(
@@ -384,7 +283,7 @@ def build_closed_loop(
             "outlet_valve_shut", ConstantVectorSource([0.0])
         ).get_output_port()
     else:
-        design, allocation = _offset_free_design(config, config.controller, plant, nominal)
+        design, allocation = offset_free_design(config, nominal)
         model = design.model
         controller = add_offset_free_lqg(
             builder, design, allocation, start_height_m, name="offset_free_lqg"

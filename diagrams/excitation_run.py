@@ -17,14 +17,8 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
 from maskless.analysis.metrics import estimate_error_std_m
-from maskless.diagrams.closed_loop import (
-    ClosedLoop,
-    LoopDrive,
-    NominalPneumatic,
-    add_plant,
-    assemble_loop,
-    inlet_current_range_a,
-)
+from maskless.diagrams.closed_loop import ClosedLoop, LoopDrive, add_plant, assemble_loop
+from maskless.diagrams.controller_design import NominalPneumatic, inlet_current_range_a
 from maskless.diagrams.run_summary import estimation_start_s
 from maskless.diagrams.scenario import PneumaticPlant, Scenario, kind_name
 from maskless.diagrams.simulation import SimulationRun, simulate_loop

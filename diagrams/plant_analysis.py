@@ -177,7 +177,10 @@ def offset_free_setup(config):
     ``closed_loop.build_closed_loop`` designs it for the pneumatic plant: the nominal head's
     parameters and their Hammerstein inverse (``NominalPneumatic``), the plant linearised at the
     configured operating lift, and the measurement delay of the configured cameras."""
-    from maskless.diagrams.closed_loop import NominalPneumatic, pneumatic_offset_free_design
+    from maskless.diagrams.controller_design import (
+        NominalPneumatic,
+        pneumatic_offset_free_design,
+    )
 
     nominal = NominalPneumatic.of(config)
     return nominal.parameters, nominal.allocation, pneumatic_offset_free_design(config, nominal)

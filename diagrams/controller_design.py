@@ -1,0 +1,177 @@
+"""Designing the controllers a scenario runs: the offset-free LQG on the nominal pneumatic
+plant's linearisation or on a linear model (identified, or the paper's), and what a controller may
+know of the plant (its nominal parameters, never the simulated patient's).
+
+``design_controller`` is the public entry point; ``closed_loop.build_closed_loop`` and the
+stability analysis design through ``offset_free_design``, so all three get the same gains.
+"""
+
+import dataclasses
+from dataclasses import dataclass
+
+from maskless.analysis.identification.model_file import load_identified_model
+from maskless.diagrams.scenario import (
+    OffsetFreeLqg,
+    PaperPlant,
+    PneumaticPlant,
+    Scenario,
+    shorthand,
+)
+from maskless.errors import ModelError
+from maskless.systems.control.offset_free_lqg import (
+    OffsetFreeLqgDesign,
+    OffsetFreeLqgWeights,
+    design_offset_free_lqg,
+)
+from maskless.systems.control.valve_allocation import SplitRangeAllocation, current_split_allocation
+from maskless.systems.linear_model import LinearModel
+from maskless.systems.paper_parameters import paper_identified_model
+from maskless.systems.plant.pneumatic_design import pneumatic_allocation, pneumatic_design_model
+from maskless.systems.plant.pneumatic_physics import PneumaticParameters
+from maskless.systems.sensing.depth_sensor import latency_frames
+from maskless.systems.units import ma_to_a
+
+# An identified model's output is the fused estimate as logged at a tick, after that tick's
+# update; the controller reads it one tick later.
+IDENTIFIED_MODEL_DELAY_SAMPLES = 1
+
+
+@dataclass
+class NominalPneumatic:
+    """What a controller may know of the pneumatic plant: the nominal head's parameters and their
+    Hammerstein inverse. Built once per loop: the inverse samples 400 steady states."""
+
+    parameters: PneumaticParameters
+    allocation: SplitRangeAllocation
+
+    @classmethod
+    def of(cls, config: Scenario) -> "NominalPneumatic":
+        p = config.pneumatic
+        nominal = dataclasses.replace(p, head_mass_kg=p.nominal_head_mass_kg)
+        allocation = pneumatic_allocation(nominal, config.offset_free_lqg.outlet_full_open_below_m)
+        return cls(nominal, allocation)
+
+
+def paper_valve_currents_a(paper) -> tuple[float, float]:
+    """The paper valve's (starting, saturation) currents (A)."""
+    return ma_to_a(paper.valve_starting_current_ma), ma_to_a(paper.valve_saturation_current_ma)
+
+
+def inlet_current_range_a(config: Scenario) -> tuple[float, float]:
+    """The (starting, saturation) currents of the inlet valve of ``config.plant`` (A): the
+    pneumatic plant's own valve, or the paper's valve in front of a linear model."""
+    if isinstance(config.plant, PneumaticPlant):
+        inlet = config.pneumatic.inlet
+        return inlet.starting_current_a, inlet.saturation_current_a
+    return paper_valve_currents_a(config.paper)
+
+
+def linear_plant_model(config: Scenario) -> tuple[LinearModel, float | None]:
+    """(model, camera height) of a linear plant: the paper's model, whose output is the distance
+    from ``config.plant.camera`` (at that camera's height, m), or a model file whose output is
+    the head height (camera height None)."""
+    if isinstance(config.plant, PaperPlant):
+        # The model was identified on the fused distance in the Kinect v2 frame (Sec. III-B).
+        camera_height_m = config.cameras[config.plant.camera].mount_height_m
+        return paper_identified_model(config.paper), camera_height_m
+    return load_identified_model(config.plant.model_file), None
+
+
+def measurement_delay_samples(config: Scenario) -> int:
+    """Controller ticks between the head's height and the fused estimate the controller reads:
+    the slowest camera's latency (whole frames), plus one tick because the controller reads the
+    local filters' state as it was before its own tick (fusion passes it straight through)."""
+    period_s = config.offset_free_lqg.sample_period_s
+    latency_s = max(
+        latency_frames(camera) / camera.frame_rate_hz for camera in config.cameras.values()
+    )
+    return round(latency_s / period_s) + 1
+
+
+def pneumatic_offset_free_design(config: Scenario, nominal: "NominalPneumatic"):
+    """The offset-free LQG for the pneumatic plant: designed on the nominal head's plant
+    linearised at the configured operating lift, for the configured cameras' measurement delay
+    (the model's output is the head height itself)."""
+    settings = config.offset_free_lqg
+    model = pneumatic_design_model(
+        nominal.parameters,
+        nominal.allocation,
+        settings.operating_lift_m,
+        settings.sample_period_s,
+    )
+    return design_offset_free_lqg(model, settings.weights, measurement_delay_samples(config))
+
+
+def offset_free_design(
+    config: Scenario, nominal: NominalPneumatic | None = None
+) -> tuple[OffsetFreeLqgDesign, SplitRangeAllocation]:
+    """(design, allocation) of the offset-free LQG as ``config``'s closed loop runs it: on the
+    nominal pneumatic plant's linearisation, or on the linear model the controller's
+    ``design_model_file`` (or else the linear plant) holds.
+
+    Args:
+        config: a validated scenario; its controller is taken as ``OffsetFreeLqg()`` unless it
+            is one.
+        nominal: ``NominalPneumatic.of(config)`` when the caller has it already.
+
+    Raises:
+        ModelError: naming the controller, when the model cannot carry the design.
+    """
+    controller = config.controller if isinstance(config.controller, OffsetFreeLqg) else None
+    controller = controller or OffsetFreeLqg()
+    if not controller.design_model_file and isinstance(config.plant, PneumaticPlant):
+        nominal = nominal or NominalPneumatic.of(config)
+        return pneumatic_offset_free_design(config, nominal), nominal.allocation
+    if controller.design_model_file:
+        identified, camera_height_m = load_identified_model(controller.design_model_file), None
+    else:
+        identified, camera_height_m = linear_plant_model(config)
+    # The design's output is the head height: a camera distance (the paper's model) is turned
+    # into one with the camera's height.
+    if camera_height_m is not None:
+        identified = identified.output_subtracted_from(camera_height_m)
+    try:
+        design = design_controller(identified, identified_model_weights(config))
+    except ModelError as error:
+        raise ModelError(f"controller {shorthand(controller)!r}: {error}") from None
+    allocation = current_split_allocation(config.pneumatic.inlet, config.pneumatic.outlet)
+    return design, allocation
+
+
+def identified_model_weights(config: Scenario) -> OffsetFreeLqgWeights:
+    """The scenario's weights for a design on an identified model: no state process noise (its
+    innovations form already carries the noise)."""
+    settings = config.offset_free_lqg
+    return dataclasses.replace(
+        settings.weights, process_noise_m2=settings.identified_model_process_noise_m2
+    )
+
+
+def design_controller(
+    model: LinearModel | Scenario,
+    weights: OffsetFreeLqgWeights | None = None,
+    measurement_delay_samples: int = IDENTIFIED_MODEL_DELAY_SAMPLES,
+) -> OffsetFreeLqgDesign:
+    """The offset-free LQG (Drake's discrete LQR and Riccati solvers) on a model or a scenario.
+
+    Args:
+        model: a LinearModel whose output is the head height and whose input is the inlet
+            command (say ``maskless.identify(...).model``); or a Scenario, designed as its
+            closed loop designs it (``offset_free_design``).
+        weights: LQR and Kalman weights; None for the shipped scenario's, with no state process
+            noise (an identified model's innovations form carries it). Ignored for a Scenario.
+        measurement_delay_samples: controller ticks between the height and the estimate the
+            controller reads; 1 for a model identified from a maskless recording (the sensing
+            chain is already inside it). Ignored for a Scenario.
+
+    Raises:
+        ModelError: an integrating model, one with feedthrough, or one whose input holds no
+            height in steady state.
+    """
+    if isinstance(model, Scenario):
+        return offset_free_design(model)[0]
+    if weights is None:
+        from maskless.diagrams.scenario import default_scenario
+
+        weights = identified_model_weights(default_scenario())
+    return design_offset_free_lqg(model, weights, measurement_delay_samples)

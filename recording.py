@@ -646,7 +646,8 @@ class RecordingWriter:
 def write_recording_batches(connection, path: str | PathLike[str]) -> None:
     """Writes the batches of channels ``connection.recv()`` returns to ``path`` until it returns
     None (a ``background.Worker``'s serve function). If the sender goes away first (EOFError),
-    the file is left without its footer: cut off, and readable up to the last batch."""
+    the file is left without its footer: cut off, and readable up to the last batch.
+    """
     channels = connection.recv()
     with RecordingWriter(path, [channel.topic for channel in channels]) as writer:
         while channels is not None:
@@ -764,7 +765,8 @@ def read_recording(
 @dataclass(frozen=True)
 class _ReadChannel:
     """How the reader presents one channel: its current topic name, its message encoding, and its
-    fields' current names (version-1 name -> current name; empty when nothing was renamed)."""
+    fields' current names (version-1 name -> current name; empty when nothing was renamed).
+    """
 
     topic: str
     message_encoding: str
@@ -792,7 +794,8 @@ def _read_channel(channel: McapChannel, schema: McapSchema | None, path: Path) -
 
 def _format_version(schema: McapSchema | None) -> int | None:
     """The format version a schema's name carries (1 without ".vN"); None for no schema or one
-    that is not maskless's, whose messages are read as they are."""
+    that is not maskless's, whose messages are read as they are.
+    """
     match = None if schema is None else _SCHEMA_NAME.fullmatch(schema.name)
     if match is None:
         return None

@@ -37,7 +37,8 @@ def plot_closed_loop(
 ) -> Path:
     """Heights (reference, true head, each local track, fused track) above the valve commands
     (inlet, and outlet when given), on a shared time axis. All height arrays are sampled at
-    ``times_s``. Returns the written path."""
+    ``times_s``. Returns the written path.
+    """
     # Imported here: matplotlib is a third of the command's start-up, and `maskless simulate`
     # renders in a second process. A bare Figure needs no GUI backend and no pyplot.
     from matplotlib.figure import Figure

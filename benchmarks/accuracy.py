@@ -55,7 +55,8 @@ SETTLE_TARGET_S = 10.0
 def draw_trial(rng: np.random.Generator, config, top_lift_m: float) -> dict:
     """A head mass, a signed step and a start lift (in the nominal head's lift, which sets the
     starting current) that keep the actual start and target reachable; ``top_lift_m`` is
-    ``nominal_top_lift_m(config)``."""
+    ``nominal_top_lift_m(config)``.
+    """
     p = config.pneumatic
     mass = rng.uniform(*HEAD_MASS_RANGE_KG)
     step = rng.uniform(*STEP_RANGE_M) * rng.choice([-1.0, 1.0])
@@ -94,7 +95,8 @@ def trial_config(base, seed: int, trial: dict, controller: str):
 def fastest_entry_s(base, nominal, trial: dict) -> float | None:
     """How soon after the step the head can first come within the tolerance of the target with
     the valves driven flat out (the inlet saturated up, the outlet saturated down): a bound on
-    any controller's settle time with these valves. None if it never does within the run."""
+    any controller's settle time with these valves. None if it never does within the run.
+    """
     config = trial_config(base, 0, trial, "offset-free-lqg")
     builder = DiagramBuilder()
     plant = add_plant(builder, config, nominal)

@@ -69,7 +69,8 @@ class _Replay:
 class Worker:
     """A forked child running ``serve(connection, *args)``, which reads with ``connection.recv()``
     the objects ``send`` passes, then None once the caller is done. (An end marker, not the
-    pipe's end: a child forked later holds a copy of the pipe, so closing it ends nothing.)"""
+    pipe's end: a child forked later holds a copy of the pipe, so closing it ends nothing.)
+    """
 
     def __init__(self, description: str, serve: Callable, *args):
         self._serve, self._args = serve, args
@@ -82,7 +83,8 @@ class Worker:
 
     def send(self, message) -> None:
         """Passes ``message`` (picklable) to the child. If the child has died, nothing happens
-        here: ``wait`` reports it."""
+        here: ``wait`` reports it.
+        """
         if self._child is None:
             self._unsent.append(message)
             return
@@ -107,7 +109,8 @@ class Worker:
 
 def serve_calls(connection, warm_up: Callable[[], None]) -> None:
     """A ``Worker`` serve function: ``warm_up()`` at once, then each ``(function, args, kwargs)``
-    received, in order, until None."""
+    received, in order, until None.
+    """
     warm_up()
     while (call := connection.recv()) is not None:
         function, args, kwargs = call

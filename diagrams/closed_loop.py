@@ -107,7 +107,8 @@ def make_reference_trajectory(reference: ReferenceConfig, start_height_m: float)
 
 def _add_loggers(builder: DiagramBuilder, logged: dict) -> dict[str, tuple[VectorLogSink, slice]]:
     """One VectorLogSink per logging period, fed by a Multiplexer of that period's signals: each
-    sink is a publish event every period, so fewer sinks make a cheaper step."""
+    sink is a publish event every period, so fewer sinks make a cheaper step.
+    """
     by_period: dict[float, list[str]] = {}
     for signal, (_, period_s) in logged.items():
         by_period.setdefault(period_s, []).append(signal)
@@ -129,7 +130,8 @@ def add_plant(
     builder: DiagramBuilder, config: Scenario, nominal: "NominalPneumatic | None"
 ) -> AddedPlant:
     """Adds ``config.plant``, at rest at ``config.start_lift_m`` for the pneumatic plant (whose
-    starting currents come from ``nominal``'s allocation) or at the model's operating point."""
+    starting currents come from ``nominal``'s allocation) or at the model's operating point.
+    """
     if isinstance(config.plant, PneumaticPlant):
         p = config.pneumatic
         start_inlet_a, start_outlet_a = nominal.allocation.currents(config.start_lift_m)
@@ -171,7 +173,8 @@ def add_sensing_chain(
     builder: DiagramBuilder, config: Scenario, head_height: OutputPort, start_height_m
 ) -> SensingChain:
     """Adds every camera watching ``head_height``, a local Kalman filter on each (starting at
-    ``start_height_m``) and the track-to-track fusion of their tracks."""
+    ``start_height_m``) and the track-to-track fusion of their tracks.
+    """
     variances = paper_filter_variances_si(config.paper)
     sensor_names = list(config.cameras)
     filters = {}
@@ -210,7 +213,8 @@ def export_and_log(
 ) -> dict[str, tuple[VectorLogSink, slice]]:
     """Exports ``loop_outputs`` (reference, head height, valve currents) and every sensing output
     under its namespaced name, and logs each when ``record``: camera frames at their frame period,
-    the rest at ``command_period_s``, so estimates and commands share timestamps."""
+    the rest at ``command_period_s``, so estimates and commands share timestamps.
+    """
     exported = dict(loop_outputs)
     exported["fusion.estimated_state"] = sensing.fusion.outputs["estimated_state"]
     exported["fusion.covariance"] = sensing.fusion.outputs["covariance"]
@@ -343,7 +347,8 @@ def assemble_loop(
 ) -> ClosedLoop:
     """Finishes a loop around ``plant``: ``drive``'s commands into the valves, the cameras,
     filters and fusion watching the head (and feeding the controller, if any), every output
-    exported and logged, the Diagram built and named."""
+    exported and logged, the Diagram built and named.
+    """
     builder.Connect(drive.inlet, plant.inlet)
     builder.Connect(drive.outlet, plant.outlet)
     sensing = add_sensing_chain(builder, config, plant.head_height, plant.start_height_m)
@@ -384,7 +389,8 @@ def logged_signals(
     closed_loop: ClosedLoop, context, taken: dict | None = None
 ) -> dict[str, Signal]:
     """Every logged output of ``closed_loop`` in ``context``, by its exported name; with ``taken``
-    (log sink -> samples already taken, updated here), only the samples logged since."""
+    (log sink -> samples already taken, updated here), only the samples logged since.
+    """
     taken = {} if taken is None else taken
     first = {sink: taken.get(sink, 0) for sink, _ in closed_loop.loggers.values()}
     signals = {}

@@ -39,7 +39,8 @@ IDENTIFIED_MODEL_DELAY_SAMPLES = 1
 @dataclass
 class NominalPneumatic:
     """What a controller may know of the pneumatic plant: the nominal head's parameters and their
-    Hammerstein inverse. Built once per loop: the inverse samples 400 steady states."""
+    Hammerstein inverse. Built once per loop: the inverse samples 400 steady states.
+    """
 
     parameters: PneumaticParameters
     allocation: SplitRangeAllocation
@@ -59,7 +60,8 @@ def paper_valve_currents_a(paper) -> tuple[float, float]:
 
 def inlet_current_range_a(config: Scenario) -> tuple[float, float]:
     """The (starting, saturation) currents of the inlet valve of ``config.plant`` (A): the
-    pneumatic plant's own valve, or the paper's valve in front of a linear model."""
+    pneumatic plant's own valve, or the paper's valve in front of a linear model.
+    """
     if isinstance(config.plant, PneumaticPlant):
         inlet = config.pneumatic.inlet
         return inlet.starting_current_a, inlet.saturation_current_a
@@ -69,7 +71,8 @@ def inlet_current_range_a(config: Scenario) -> tuple[float, float]:
 def linear_plant_model(config: Scenario) -> tuple[LinearModel, float | None]:
     """(model, camera height) of a linear plant: the paper's model, whose output is the distance
     from ``config.plant.camera`` (at that camera's height, m), or a model file whose output is
-    the head height (camera height None)."""
+    the head height (camera height None).
+    """
     if isinstance(config.plant, PaperPlant):
         # The model was identified on the fused distance in the Kinect v2 frame (Sec. III-B).
         camera_height_m = config.cameras[config.plant.camera].mount_height_m
@@ -80,7 +83,8 @@ def linear_plant_model(config: Scenario) -> tuple[LinearModel, float | None]:
 def measurement_delay_samples(config: Scenario) -> int:
     """Controller ticks between the head's height and the fused estimate the controller reads:
     the slowest camera's latency (whole frames), plus one tick because the controller reads the
-    local filters' state as it was before its own tick (fusion passes it straight through)."""
+    local filters' state as it was before its own tick (fusion passes it straight through).
+    """
     period_s = config.offset_free_lqg.sample_period_s
     latency_s = max(
         latency_frames(camera) / camera.frame_rate_hz for camera in config.cameras.values()
@@ -91,7 +95,8 @@ def measurement_delay_samples(config: Scenario) -> int:
 def pneumatic_offset_free_design(config: Scenario, nominal: "NominalPneumatic"):
     """The offset-free LQG for the pneumatic plant: designed on the nominal head's plant
     linearised at the configured operating lift, for the configured cameras' measurement delay
-    (the model's output is the head height itself)."""
+    (the model's output is the head height itself).
+    """
     settings = config.offset_free_lqg
     model = pneumatic_design_model(
         nominal.parameters,
@@ -140,7 +145,8 @@ def offset_free_design(
 
 def identified_model_weights(config: Scenario) -> OffsetFreeLqgWeights:
     """The scenario's weights for a design on an identified model: no state process noise (its
-    innovations form already carries the noise)."""
+    innovations form already carries the noise).
+    """
     settings = config.offset_free_lqg
     return dataclasses.replace(
         settings.weights, process_noise_m2=settings.identified_model_process_noise_m2

@@ -163,7 +163,8 @@ def excite(scenario: Scenario, request: ExcitationRequest) -> ExcitationRun:
 
 def excite_to_files(scenario: Scenario, request: ExcitationRequest, out: str | Path) -> dict:
     """``excite``, writing OUT/run.mcap and OUT/run.png (``maskless excite``); returns the
-    summary with the files written (``files``)."""
+    summary with the files written (``files``).
+    """
     experiment = excite(scenario, request)
     out = Path(out)
     mcap_path = experiment.run.write_mcap(out / "run.mcap")
@@ -176,7 +177,8 @@ def build_excitation_loop(
 ) -> ClosedLoop:
     """The plant driven open loop by ``signal`` on its inlet (outlet shut), watched by the
     cameras, local filters and fusion; outputs and logs as ``build_closed_loop``'s, logged at the
-    signal's sample period. ``controller`` is "excitation", and model and design are None."""
+    signal's sample period. ``controller`` is "excitation", and model and design are None.
+    """
     builder = DiagramBuilder()
     nominal = NominalPneumatic.of(config) if isinstance(config.plant, PneumaticPlant) else None
     plant = add_plant(builder, config, nominal)

@@ -155,7 +155,8 @@ def read_record(
     request: IdentificationRequest,
 ) -> tuple[np.ndarray, np.ndarray, tuple[str, str]]:
     """The input and output records and their units, refused with the file named when they
-    cannot be used."""
+    cannot be used.
+    """
     label = request.label
     output_path = request.output or request.input
     if request.input.suffix == ".mcap" or output_path.suffix == ".mcap":
@@ -316,7 +317,8 @@ def identify_to_files(request: IdentificationRequest, out: str | Path) -> dict:
 
 def write_identification(identified: "IdentificationRun", out: str | Path) -> dict:
     """Writes OUT/report.json, one model file per order and the compare and residual plots (on
-    the second core meanwhile); returns the report with each model's file named."""
+    the second core meanwhile); returns the report with each model's file named.
+    """
     fitted_models, parts, report = identified.fitted_models, identified.parts, identified.report
     offsets, units, request = identified.offsets, identified.units, identified.request
     out = Path(out)

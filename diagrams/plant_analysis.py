@@ -65,7 +65,8 @@ def analyze_operating_range(scenario: Scenario, points: int = 22, out: str | Pat
     """Sweeps each valve's current over ``points`` currents from starting to saturation (the
     inlet with the outlet shut; the outlet with the inlet fully open): steady lift, pressure,
     Drake's linearisation there. Returns the JSON-ready report; with ``out``, also writes
-    OUT/operating_range.json and OUT/operating_range.png, named under ``files``."""
+    OUT/operating_range.json and OUT/operating_range.png, named under ``files``.
+    """
     from maskless.analysis.operating_range import default_operating_ranges
 
     if points < 2:
@@ -176,7 +177,8 @@ def offset_free_setup(config):
     """(nominal parameters, allocation, design) of the offset-free LQG as
     ``closed_loop.build_closed_loop`` designs it for the pneumatic plant: the nominal head's
     parameters and their Hammerstein inverse (``NominalPneumatic``), the plant linearised at the
-    configured operating lift, and the measurement delay of the configured cameras."""
+    configured operating lift, and the measurement delay of the configured cameras.
+    """
     from maskless.diagrams.controller_design import (
         NominalPneumatic,
         pneumatic_offset_free_design,
@@ -304,7 +306,8 @@ def _paper_lines(paper: dict) -> list[str]:
 
 def format_stability(report: dict) -> str:
     """The stability report as lines a person reads: one row per lift and head mass, the margins
-    at each extra latency side by side."""
+    at each extra latency side by side.
+    """
     o = report["offset_free_lqg"]
     d = o["design"]
     groups: dict[tuple, list] = {}
@@ -354,7 +357,8 @@ def format_stability(report: dict) -> str:
 
 def _checked_cases(scenario: Scenario, request: StabilityRequest, allocation):
     """(lifts (m), mass factors, extra latencies (ticks)) of ``request``, with 1 and 0 added,
-    refused where a head cannot rest at a lift."""
+    refused where a head cannot rest at a lift.
+    """
     from maskless.analysis.stability.loop_robustness import holdable_lift_range_m
     from maskless.systems.units import m_to_mm
 
@@ -388,7 +392,8 @@ def analyze_stability(
     loop designs it) on the pneumatic plant linearised at each lift, head mass and extra latency
     of ``request``: closed-loop poles, gain, phase and delay margins. Returns the JSON-ready
     report; with ``out``, also writes OUT/stability.json and three plots, named under
-    ``files``."""
+    ``files``.
+    """
     from maskless.analysis.stability.loop_robustness import analyze_paper_loop, robustness_cases
     from maskless.systems.control.paper_lqg import paper_lqg
 

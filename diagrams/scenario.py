@@ -41,7 +41,8 @@ from maskless.systems.sensing.local_kalman_filter import LocalFilterConfig
 @dataclass
 class PneumaticPlant:
     """The first-principles robot ("the real robot"); its constants are the scenario's
-    ``pneumatic`` section."""
+    ``pneumatic`` section.
+    """
 
 
 @dataclass

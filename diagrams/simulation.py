@@ -46,7 +46,8 @@ class SimulationRun:
     @functools.cached_property
     def metrics(self) -> dict:
         """Tracking, estimation and controller figures (mm, mA and s), as
-        ``maskless simulate --json`` prints them (less the timing and the files written)."""
+        ``maskless simulate --json`` prints them (less the timing and the files written).
+        """
         return summarize(self)
 
     @property
@@ -69,7 +70,8 @@ class SimulationRun:
 
     def plot_arguments(self, show_tolerance: bool = True) -> dict:
         """``plot_closed_loop``'s keyword arguments: arrays and strings, which pickle (a worker
-        process can draw them)."""
+        process can draw them).
+        """
         s = self.signals
         return dict(
             times_s=s["head_height_m"].times_s,
@@ -90,7 +92,8 @@ class SimulationRun:
 
     def plot(self, path: str | Path, show_tolerance: bool = True) -> Path:
         """Draws head height, reference, tracks and valve commands to ``path`` (PNG), with the
-        clinical band about the reference when ``show_tolerance``."""
+        clinical band about the reference when ``show_tolerance``.
+        """
         from maskless.analysis.closed_loop_plots import plot_closed_loop
 
         path = Path(path)
@@ -130,7 +133,8 @@ def simulate_loop(
     on_chunk: Callable[[dict[str, Signal]], None] | None = None,
 ) -> SimulationRun:
     """Simulates a built loop for ``scenario.duration_s``, seeded with ``scenario.random_seed``,
-    and collects its logs (see ``simulate`` for the callbacks)."""
+    and collects its logs (see ``simulate`` for the callbacks).
+    """
     simulator = Simulator(closed_loop.diagram)
     context = simulator.get_mutable_context()
     closed_loop.diagram.SetRandomContext(context, RandomGenerator(scenario.random_seed))

@@ -57,7 +57,8 @@ def excite_command(request: ExcitationRequest, seed: int, config: Path | None, o
 
 def identify_command(request: IdentificationRequest, out: Path) -> str:
     """The `maskless identify` command line that runs ``request`` (the fields the workflow
-    sets; the rest at their defaults)."""
+    sets; the rest at their defaults).
+    """
     argv = ["--input", str(request.input), "--ts", repr(request.ts)]
     argv += ["--orders", ",".join(map(str, request.orders)), "--method", request.method]
     return "maskless identify " + shlex.join([*argv, "--out", str(out)])

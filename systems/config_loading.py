@@ -34,7 +34,8 @@ def asset_path(name: str) -> Path:
 @dataclasses.dataclass(frozen=True)
 class _Tagged:
     """A YAML node written with a type tag (``!IdentifiedPlant {...}``): the tag picks one
-    alternative of a ``Union`` field, as in ``yaml_load_typed``."""
+    alternative of a ``Union`` field, as in ``yaml_load_typed``.
+    """
 
     tag: str
     value: object
@@ -72,7 +73,8 @@ _TagWritingDumper.add_representer(_Tagged, _represent_tagged)
 
 def _dataclass_alternatives(annotation) -> tuple[type, ...]:
     """The dataclasses an annotation allows: one for a plain or Optional dataclass field, several
-    for a Union of dataclasses (chosen in YAML by tag), none for anything else."""
+    for a Union of dataclasses (chosen in YAML by tag), none for anything else.
+    """
     if dataclasses.is_dataclass(annotation):
         return (annotation,)
     return tuple(arg for arg in typing.get_args(annotation) if dataclasses.is_dataclass(arg))
@@ -82,7 +84,8 @@ def _checked_tree(tree, schema, default, filename: str, prefix: str = ""):
     """``tree`` checked against ``schema`` (unknown fields, wrong types, unknown tags), with the
     tag of every ``Union`` value made explicit. An untagged value keeps the type of the default it
     overrides: ``yaml_load_typed`` would read it as the Union's first alternative and so quietly
-    turn, say, a Kinect v2 entry into a Kinect v1."""
+    turn, say, a Kinect v2 entry into a Kinect v1.
+    """
     if not isinstance(tree, dict):
         where = f"field '{prefix.rstrip('.')}'" if prefix else "the top level"
         raise ConfigError(f"{filename}: {where} must be a mapping, got {type(tree).__name__}")
@@ -178,7 +181,8 @@ def _check_scalar_type(value, annotation, filename: str, dotted_name: str) -> No
 
 def find_unset_fields(config, prefix: str = "") -> list[str]:
     """Dotted names of float fields still at ``UNSET`` (NaN) anywhere in a dataclass tree (mapping
-    values included)."""
+    values included).
+    """
     unset = []
     for field in dataclasses.fields(config):
         value = getattr(config, field.name)

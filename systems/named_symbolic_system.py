@@ -56,7 +56,8 @@ def as_diagram(name: str, add: Callable[[DiagramBuilder], PortMap]) -> Diagram:
 
 def diagram_form(add: Callable[..., PortMap]) -> Callable[..., Diagram]:
     """The ``make_*`` form of an ``add_*`` component: it takes the same arguments except the
-    builder and returns a Diagram named by the component's ``name`` argument."""
+    builder and returns a Diagram named by the component's ``name`` argument.
+    """
     signature = inspect.signature(add)
 
     def make(*args, **kwargs) -> Diagram:

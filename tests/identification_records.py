@@ -20,7 +20,8 @@ TRUE_SYSTEMS = {
 
 def simulate_record(order: int, noise: str, samples: int, seed: int = 0):
     """A(q) y = B(q) u + C(q) e with white u; C = 1 for "white" noise (equation error), C with the
-    listed zeros for "coloured". Returns u, y, the true A coefficients [1, a1..an] and b."""
+    listed zeros for "coloured". Returns u, y, the true A coefficients [1, a1..an] and b.
+    """
     system = TRUE_SYSTEMS[order]
     rng = np.random.default_rng(seed)
     a = np.real(np.poly(system["poles"]))
@@ -33,7 +34,8 @@ def simulate_record(order: int, noise: str, samples: int, seed: int = 0):
 
 def load_paper_record():
     """The authors' identification record with their preprocessing (whole-record mean removed),
-    or None when ../shared/paper-data is absent."""
+    or None when ../shared/paper-data is absent.
+    """
     if not (PAPER_DATA / "inputUGWN3.csv").is_file():
         return None
     u = np.loadtxt(PAPER_DATA / "inputUGWN3.csv")

@@ -1,5 +1,6 @@
 """The CLI's own pieces: one parser per command, built lazily, and flags turned into a scenario
-that names only the flags given."""
+that names only the flags given.
+"""
 
 import argparse
 import sys

@@ -34,7 +34,8 @@ def random_model(seed, n, feedthrough=0.0):
 
 def lqg_loop():
     """A lightly damped lag plus integrator, and the observer-based LQG controller
-    x̂(k+1) = (A - B Kx - Lk C) x̂ + Lk y, u = -Kx x̂, whose output carries its minus sign."""
+    x̂(k+1) = (A - B Kx - Lk C) x̂ + Lk y, u = -Kx x̂, whose output carries its minus sign.
+    """
     A = np.array([[1.0, TS], [0.0, 0.9]])
     B = np.array([[0.0], [TS]])
     C = np.array([[1.0, 0.0]])

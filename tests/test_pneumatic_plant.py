@@ -130,7 +130,8 @@ SLEWS = [((0.0, 0.0), (0.165, 0.0)), ((0.165, 0.0), (0.0, 0.165))]
 
 def slew_error_m(p, head_mass_kg, start, step, step_divisor):
     """Max |compiled - continuous| head height over a 20 s full-valve slew, logged every step of
-    the compiled plant; the continuous run (Drake RK3, target accuracy 1e-8) is cached."""
+    the compiled plant; the continuous run (Drake RK3, target accuracy 1e-8) is cached.
+    """
     q = dataclasses.replace(p, head_mass_kg=head_mass_kg)
     state = equilibrium_state(q, *start)
     h = q.simulation_step_s / step_divisor

@@ -194,7 +194,8 @@ def steady_lift_at_command_m(
     p: PneumaticParameters, allocation: SplitRangeAllocation, command_m: float
 ) -> float:
     """The lift (m) at which the plant ``p`` rests with the valve currents the allocation gives
-    for ``command_m``."""
+    for ``command_m``.
+    """
     inlet, outlet = allocation.currents(command_m)
     return float(equilibrium_state(p, float(inlet), float(outlet))[LIFT])
 
@@ -203,7 +204,8 @@ def holdable_lift_range_m(
     p: PneumaticParameters, allocation: SplitRangeAllocation
 ) -> tuple[float, float]:
     """(lowest, highest) lift (m) the plant ``p`` rests at over the allocation's command range:
-    the outlet fully open (inlet shut) and the inlet fully open (outlet shut)."""
+    the outlet fully open (inlet shut) and the inlet fully open (outlet shut).
+    """
     low, high = allocation.command_range
     return (
         steady_lift_at_command_m(p, allocation, low),

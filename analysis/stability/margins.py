@@ -55,7 +55,7 @@ def _check_sign(sign) -> float:
 
 
 def _scaled(model: LinearModel, factor: float) -> LinearModel:
-    """factor · model (output scaled)."""
+    """Factor · model (output scaled)."""
     return LinearModel(model.A, model.B, factor * model.C, factor * model.D, model.sample_period_s)
 
 
@@ -205,7 +205,8 @@ class Margins:
 
     def as_dict(self) -> dict[str, float | str | None]:
         """The margins as JSON-safe values: finite floats as they are, ±inf as the strings
-        "inf" / "-inf" (meaning "no crossing, unbounded"), nan as None (no such frequency)."""
+        "inf" / "-inf" (meaning "no crossing, unbounded"), nan as None (no such frequency).
+        """
         return {name: json_safe(value) for name, value in vars(self).items()}
 
 
@@ -228,7 +229,8 @@ def _band_edge_response(loop: LinearModel, z: float) -> float | None:
 
 def _refined_roots(function, omega: np.ndarray, values: np.ndarray, ok: np.ndarray) -> list:
     """Roots of ``function`` on the grid: exact zeros, and brentq in each interval whose ends
-    change sign and where ``ok`` (per interval) allows it."""
+    change sign and where ``ok`` (per interval) allows it.
+    """
     roots = list(omega[values == 0.0])
     changes = np.flatnonzero((values[:-1] * values[1:] < 0.0) & ok)
     for i in changes:

@@ -340,7 +340,8 @@ def _signal(values, sample_period_s, kind):
 
 def sample_count(duration_s, sample_period_s) -> int:
     """The samples N = floor(duration_s / sample_period_s) a design of that length has, with the
-    ratio's rounding error forgiven (0.3 s / 0.1 s gives 3, not 2)."""
+    ratio's rounding error forgiven (0.3 s / 0.1 s gives 3, not 2).
+    """
     return math.floor(duration_s / sample_period_s * (1.0 + _SAMPLE_COUNT_RTOL))
 
 

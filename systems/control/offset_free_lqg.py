@@ -104,7 +104,8 @@ class OffsetFreeLqgDesign:
 
     def estimator_state_at(self, output_deviation_m: float) -> np.ndarray:
         """The augmented state [x, d, delayed heights] at rest at ``output_deviation_m``, with
-        no disturbance."""
+        no disturbance.
+        """
         return np.concatenate(
             [
                 self.state_per_reference * output_deviation_m,
@@ -116,7 +117,8 @@ class OffsetFreeLqgDesign:
 
 def augment_for_estimation(model: LinearModel, measurement_delay_samples: int = 0):
     """(A_a, B_a, C_a) of x+ = A x + B (u + d), d+ = d, z1+ = C x, z(i+1)+ = z(i), and the
-    measurement y = z(delay) (y = C x with no delay)."""
+    measurement y = z(delay) (y = C x with no delay).
+    """
     if measurement_delay_samples < 0:
         raise ValueError(f"measurement_delay_samples must be >= 0, got {measurement_delay_samples}")
     n, delay = model.A.shape[0], measurement_delay_samples
@@ -199,7 +201,8 @@ def design_offset_free_lqg(
 
 def _output_scaled_identity(N_x: np.ndarray) -> np.ndarray:
     """A diagonal that weighs each state as much as the output it would produce in steady state
-    (N_x per unit output), so one number weighs states of any units (Pa, m, A) evenly."""
+    (N_x per unit output), so one number weighs states of any units (Pa, m, A) evenly.
+    """
     scale = np.where(np.abs(N_x) > 1e-12, 1.0 / np.maximum(np.abs(N_x), 1e-12), 1.0)
     return np.diag(scale**2)
 
@@ -219,7 +222,8 @@ def controller_state_space(design: OffsetFreeLqgDesign) -> LinearModel:
     at a constant reference (Δr = 0), with the predicted estimate as state: z̄ = z + M (y - C_a z),
     u = -F z̄, z+ = A_a z̄ + B_a u, where F = [K, 1, 0...] (the disturbance estimate is subtracted
     from the command). The sign is the controller's own (u = C_c z + D_c y), as
-    ``analysis.stability.margins`` expects."""
+    ``analysis.stability.margins`` expects.
+    """
     model = design.model
     size = design.augmented_A.shape[0]
     n = model.A.shape[0]

@@ -59,7 +59,8 @@ class SplitRangeAllocation:
 
 def _piecewise_linear(x, knots, values):
     """Linear interpolation through (knots, values), constant beyond the ends, as a sum of clamped
-    ramps: min and max only, so it also builds a symbolic expression."""
+    ramps: min and max only, so it also builds a symbolic expression.
+    """
     result = float(values[0])
     for k in range(len(knots) - 1):
         slope = (values[k + 1] - values[k]) / (knots[k + 1] - knots[k])
@@ -113,7 +114,8 @@ def _split_range(
     """The allocation both designs share: the inlet serves ``inlet_commands`` (from its starting
     current up); below the first of them the outlet ramps from its starting current to fully
     open at ``outlet_fully_open_command``. At the first inlet command the currents jump both
-    valves' dead bands (a knot a hair above keeps the map a function)."""
+    valves' dead bands (a knot a hair above keeps the map a function).
+    """
     epsilon = 1e-6 * (inlet_commands[-1] - inlet_commands[0])
     tail = len(inlet_commands) - 1
     return SplitRangeAllocation(

@@ -141,7 +141,8 @@ class AllocationPoint:
 
 def allocation_point(allocation: SplitRangeAllocation, command: float) -> AllocationPoint:
     """The currents at ``command`` and the slope of the segment it lies on (the one below, at a
-    knot)."""
+    knot).
+    """
     knots = allocation.command_knots
     segment = int(np.clip(np.searchsorted(knots, command) - 1, 0, len(knots) - 2))
     inlet, outlet = allocation.inlet_currents_a, allocation.outlet_currents_a

@@ -128,7 +128,8 @@ class PneumaticParameters:
     @property
     def unloaded_lift_m(self) -> float:
         """Where the bladder fabric carries no load: the nominal head rests at zero lift with the
-        bladder at zero gauge."""
+        bladder at zero gauge.
+        """
         return self.nominal_head_mass_kg * self.gravity_m_s2 / self.stiffness_n_m
 
 
@@ -153,7 +154,8 @@ def subsonic_flow_factor(pressure_ratio, critical_ratio, laminar_ratio):
 def mass_flow_kg_s(conductance, critical_ratio, p_up, p_down, parameters: PneumaticParameters):
     """ISO 6358 mass flow from absolute pressure ``p_up`` to ``p_down`` (zero if p_down is higher);
     for a valve, whose upstream side is fixed by the circuit (the supply always exceeds the
-    bladder, the vacuum is always below it)."""
+    bladder, the vacuum is always below it).
+    """
     scale = (
         conductance
         * parameters.reference_density_kg_m3

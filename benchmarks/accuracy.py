@@ -29,7 +29,7 @@ from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 from maskless.analysis.metrics import tracking_metrics
 from maskless.diagrams.closed_loop import add_plant
 from maskless.diagrams.controller_design import NominalPneumatic
-from maskless.diagrams.scenario import load_scenario
+from maskless.diagrams.scenario import controller_from_shorthand, load_scenario
 from maskless.diagrams.simulation import simulate
 from maskless.systems.plant.pneumatic_design import steady_lift_curve
 from maskless.systems.units import m_to_mm
@@ -83,7 +83,7 @@ def trial_config(base, seed: int, trial: dict, controller: str):
     """A copy of the ``base`` config set up for one trial."""
     config = copy.deepcopy(base)
     config.random_seed = seed
-    config.controller = controller
+    config.controller = controller_from_shorthand(controller)
     config.pneumatic.head_mass_kg = trial["head_mass_kg"]
     config.start_lift_m = trial["start_lift_m"]
     config.reference.step_times_s = [STEP_TIME_S]

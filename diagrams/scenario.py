@@ -397,7 +397,15 @@ def _validate_cameras(config: Scenario) -> None:
 
 
 def _validate_choices(config: Scenario) -> None:
-    """Refuses a model file that does not exist and a camera the paper's model cannot use."""
+    """Refuses a choice that is no variant, a model file that does not exist and a camera the
+    paper's model cannot use."""
+    for field_name, choice, variants in (
+        ("plant", config.plant, Plant),
+        ("controller", config.controller, Controller),
+    ):
+        if not isinstance(choice, variants.__args__):
+            names = ", ".join(variant.__name__ for variant in variants.__args__)
+            raise ConfigError(f"{field_name} = {choice!r}: expected one of {names}")
     files = {
         "plant.model_file": getattr(config.plant, "model_file", None),
         "controller.design_model_file": getattr(config.controller, "design_model_file", None),

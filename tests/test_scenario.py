@@ -185,3 +185,8 @@ def test_an_override_that_breaks_the_scenario_names_the_override():
         load_scenario(duration_s=-1.0)
     with pytest.raises(ConfigError, match="unknown scenario field 'duration'"):
         load_scenario(duration=3.0)
+
+
+def test_a_choice_set_as_a_string_is_refused_naming_the_variants():
+    with pytest.raises(ConfigError, match="controller = 'paper-lqg': expected one of OffsetFreeLqg"):
+        load_scenario(controller="paper-lqg")

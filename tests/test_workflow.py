@@ -1,4 +1,5 @@
 import json
+import shlex
 
 import numpy as np
 import pytest
@@ -81,3 +82,15 @@ def test_bad_flags_are_refused_before_any_stage_runs(tmp_path, capsys, flags, me
     assert main(["workflow", *flags, "--out", str(out)]) == 2
     assert message in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_each_printed_command_redoes_its_stage_byte_for_byte(workflow, capsys):
+    out, _, lines = workflow
+    files = ["excitation/run.mcap", "identification/report.json", "closed_loop/run.mcap"]
+    before = {name: (out / name).read_bytes() for name in files}
+    for line in lines:
+        argv = shlex.split(line)
+        assert argv[0] == "maskless" and main(argv[1:]) == 0
+    capsys.readouterr()
+    for name in files:
+        assert (out / name).read_bytes() == before[name], name

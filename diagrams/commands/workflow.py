@@ -1,6 +1,14 @@
 """The paper's workflow, closed inside the product: excite -> identify -> design -> simulate.
 
-See ``maskless.diagrams.workflow`` for the stages; each prints the command that runs it alone.
+1. excite the pneumatic plant's inlet open loop and record it to DIR/excitation/run.mcap;
+2. identify a state-space model (prediction error, --order) from the recorded command to the fused
+   height, into DIR/identification/;
+3. design the offset-free LQG on that model and simulate it on the pneumatic plant, into
+   DIR/closed_loop/.
+
+Each stage prints the `maskless` command that redoes it alone. The default PRBS holds each bit
+2 s, because the bladder's time constants are seconds long; the paper's uniform white noise at
+the frame rate (--signal uniform --clock-periods 1) leaves the input's effect below the noise.
 """
 
 import argparse

@@ -549,8 +549,9 @@ class _Batch:
 
 
 class RecordingWriter:
-    """A recording written in batches, for a run that is still going: each batch holds the next
-    samples of every topic, later than every message before it.
+    """A recording written in batches, for a run that is still going.
+
+    Each batch holds the next samples of every topic, later than every message before it.
 
     Use it as a context manager. Leaving the block normally writes the footer; leaving it on an
     error closes the file without one, so ``read_recording`` reads what was written and reports
@@ -644,9 +645,10 @@ class RecordingWriter:
 
 
 def write_recording_batches(connection, path: str | PathLike[str]) -> None:
-    """Writes the batches of channels ``connection.recv()`` returns to ``path`` until it returns
-    None (a ``background.Worker``'s serve function). If the sender goes away first (EOFError),
-    the file is left without its footer: cut off, and readable up to the last batch.
+    """Writes the batches of channels ``connection.recv()`` returns to ``path``, until None.
+
+    A ``background.Worker``'s serve function. If the sender goes away first (EOFError), the file
+    is left without its footer: cut off, and readable up to the last batch.
     """
     channels = connection.recv()
     with RecordingWriter(path, [channel.topic for channel in channels]) as writer:
@@ -764,8 +766,9 @@ def read_recording(
 
 @dataclass(frozen=True)
 class _ReadChannel:
-    """How the reader presents one channel: its current topic name, its message encoding, and its
-    fields' current names (version-1 name -> current name; empty when nothing was renamed).
+    """How the reader presents one channel: current topic name, message encoding, field names.
+
+    The field names map each version-1 name to its current name; empty when nothing was renamed.
     """
 
     topic: str
@@ -793,8 +796,9 @@ def _read_channel(channel: McapChannel, schema: McapSchema | None, path: Path) -
 
 
 def _format_version(schema: McapSchema | None) -> int | None:
-    """The format version a schema's name carries (1 without ".vN"); None for no schema or one
-    that is not maskless's, whose messages are read as they are.
+    """The format version a schema's name carries (1 without ".vN").
+
+    None for no schema or one that is not maskless's, whose messages are read as they are.
     """
     match = None if schema is None else _SCHEMA_NAME.fullmatch(schema.name)
     if match is None:

@@ -204,8 +204,10 @@ class Margins:
     delay_margin_s: float
 
     def as_dict(self) -> dict[str, float | str | None]:
-        """The margins as JSON-safe values: finite floats as they are, ±inf as the strings
-        "inf" / "-inf" (meaning "no crossing, unbounded"), nan as None (no such frequency).
+        """The margins as JSON-safe values.
+
+        Finite floats stay as they are, ±inf become the strings "inf" / "-inf" (meaning "no
+        crossing, unbounded"), and nan becomes None (no such frequency).
         """
         return {name: json_safe(value) for name, value in vars(self).items()}
 
@@ -228,8 +230,9 @@ def _band_edge_response(loop: LinearModel, z: float) -> float | None:
 
 
 def _refined_roots(function, omega: np.ndarray, values: np.ndarray, ok: np.ndarray) -> list:
-    """Roots of ``function`` on the grid: exact zeros, and brentq in each interval whose ends
-    change sign and where ``ok`` (per interval) allows it.
+    """Roots of ``function`` on the grid: its exact zeros, and those brentq finds between points.
+
+    brentq runs in each interval whose ends change sign and where ``ok`` (per interval) allows it.
     """
     roots = list(omega[values == 0.0])
     changes = np.flatnonzero((values[:-1] * values[1:] < 0.0) & ok)

@@ -1,6 +1,8 @@
-"""Measurement models of the two depth cameras: ``kinect_v1`` (structured light) and ``kinect_v2``
-(time of flight). Both share one port contract: the true head height above the table in (m); the
-camera-to-face distance (m) and a validity flag out, one frame per frame period.
+"""Measurement models of the two depth cameras, ``kinect_v1`` and ``kinect_v2``.
+
+``kinect_v1`` is structured light, ``kinect_v2`` time of flight. Both share one port contract: the
+true head height above the table in (m); the camera-to-face distance (m) and a validity flag out,
+one frame per frame period.
 
 Each frame: the head height from ``latency`` ago becomes a distance below the camera; published
 axial noise is added (Kinect v1: Nguyen, Izadi, Lovell 2012; Kinect v2: Fankhauser et al. 2015, plus
@@ -118,10 +120,12 @@ def kinect_v1_quantised_distance_m(distance_m):
 
 
 def sqrt_any(value):
+    """The square root of a float, or of a ``pydrake.symbolic`` expression or variable."""
     return sqrt(value) if isinstance(value, Expression | Variable) else math.sqrt(value)
 
 
 def floor_any(value):
+    """The floor of a float, or of a ``pydrake.symbolic`` expression or variable."""
     return floor(value) if isinstance(value, Expression | Variable) else math.floor(value)
 
 
@@ -161,8 +165,9 @@ def validate_sensor_config(name: str, config: DepthSensorConfig) -> None:
 
 
 def add_depth_sensor(builder: DiagramBuilder, name: str, config: DepthSensorConfig) -> PortMap:
-    """Adds a camera model to ``builder``: ``kinect_v1`` for a KinectV1Config, ``kinect_v2`` for
-    a KinectV2Config.
+    """Adds a camera model to ``builder``, ``kinect_v1`` or ``kinect_v2`` as ``config`` says.
+
+    ``kinect_v1`` for a KinectV1Config, ``kinect_v2`` for a KinectV2Config.
 
     .. pydrake_system::
 

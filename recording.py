@@ -718,39 +718,10 @@ def read_recording(
         raise RecordError(f"{path} is not an MCAP file (bad magic bytes {head!r})")
 
     recording = Recording()
-    schemas: dict[int, McapSchema] = {}
-    channels: dict[int, _ReadChannel] = {}
-    count = 0
-    error: Exception | None = None
     if len(head) < len(_MAGIC):
-        error = EndOfFile("file ends inside the magic bytes")
+        count, error = 0, EndOfFile("file ends inside the magic bytes")
     else:
-        reader = StreamReader(
-            _StrictBytesIO(data),
-            validate_crcs=True,
-            # No record can be longer than the file; this stops a corrupt length early.
-            record_size_limit=len(data),
-        )
-        records = reader.records
-        while True:
-            try:
-                record = next(records)
-            except StopIteration:
-                break
-            except _READ_ERRORS as exc:
-                error = exc
-                break
-            if isinstance(record, McapSchema):
-                schemas[record.id] = record
-            elif isinstance(record, McapChannel):
-                channel = _read_channel(record, schemas.get(record.schema_id), path)
-                channels[record.id] = channel
-                recording.messages.setdefault(channel.topic, [])
-            elif isinstance(record, McapMessage):
-                channel = channels.get(record.channel_id)
-                if topics is None or channel is None or channel.topic in topics:
-                    _append_message(recording, channels, record, path)
-                count += 1
+        count, error = _read_records(data, path, topics, recording)
 
     if error is not None:
         recording.truncated = True
@@ -762,6 +733,48 @@ def read_recording(
             stacklevel=2,
         )
     return recording
+
+
+def _read_records(
+    data: bytes, path: Path, topics: Collection[str] | None, recording: Recording
+) -> tuple[int, Exception | None]:
+    """Reads ``data``'s records front to back into ``recording``, up to the first unreadable one.
+
+    Returns:
+        The number of messages read (those of topics not decoded included), and the error that
+        stopped the reading: a cut or a corrupt record; None when the records ran to their end.
+
+    Raises:
+        RecordError: as ``read_recording`` does, for a channel or message it refuses.
+    """
+    schemas: dict[int, McapSchema] = {}
+    channels: dict[int, _ReadChannel] = {}
+    count = 0
+    reader = StreamReader(
+        _StrictBytesIO(data),
+        validate_crcs=True,
+        # No record can be longer than the file; this stops a corrupt length early.
+        record_size_limit=len(data),
+    )
+    records = reader.records
+    while True:
+        try:
+            record = next(records)
+        except StopIteration:
+            return count, None
+        except _READ_ERRORS as exc:
+            return count, exc
+        if isinstance(record, McapSchema):
+            schemas[record.id] = record
+        elif isinstance(record, McapChannel):
+            channel = _read_channel(record, schemas.get(record.schema_id), path)
+            channels[record.id] = channel
+            recording.messages.setdefault(channel.topic, [])
+        elif isinstance(record, McapMessage):
+            channel = channels.get(record.channel_id)
+            if topics is None or channel is None or channel.topic in topics:
+                _append_message(recording, channels, record, path)
+            count += 1
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,6 @@
-"""maskless: simulate, identify and control a soft-robot head positioner for mask-free head-and-neck
-radiotherapy, as Drake diagrams.
+"""maskless: simulate, identify and control a soft-robot head positioner, as Drake diagrams.
+
+The positioner is for mask-free head-and-neck radiotherapy.
 
 The public API, one import away::
 

@@ -1,5 +1,6 @@
-"""The errors maskless reports to a user: one family, so a caller (the CLI, a script) can tell a bad
-input from a bug.
+"""The errors maskless reports to a user: one family, so a caller can tell a bad input from a bug.
+
+The caller may be the CLI or a script.
 
 Every error here names what was wrong (the file, the field, the flag or the argument) and what was
 expected. Each also subclasses the built-in error a Python caller would expect (ValueError,

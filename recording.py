@@ -549,8 +549,9 @@ class _Batch:
 
 
 class RecordingWriter:
-    """A recording written in batches, for a run that is still going: each batch holds the next
-    samples of every topic, later than every message before it.
+    """A recording written in batches, for a run that is still going.
+
+    Each batch holds the next samples of every topic, later than every message before it.
 
     Use it as a context manager. Leaving the block normally writes the footer; leaving it on an
     error closes the file without one, so ``read_recording`` reads what was written and reports
@@ -644,9 +645,10 @@ class RecordingWriter:
 
 
 def write_recording_batches(connection, path: str | PathLike[str]) -> None:
-    """Writes the batches of channels ``connection.recv()`` returns to ``path`` until it returns
-    None (a ``background.Worker``'s serve function). If the sender goes away first (EOFError),
-    the file is left without its footer: cut off, and readable up to the last batch.
+    """Writes the batches of channels ``connection.recv()`` returns to ``path``, until None.
+
+    A ``background.Worker``'s serve function. If the sender goes away first (EOFError), the file
+    is left without its footer: cut off, and readable up to the last batch.
     """
     channels = connection.recv()
     with RecordingWriter(path, [channel.topic for channel in channels]) as writer:
@@ -716,39 +718,10 @@ def read_recording(
         raise RecordError(f"{path} is not an MCAP file (bad magic bytes {head!r})")
 
     recording = Recording()
-    schemas: dict[int, McapSchema] = {}
-    channels: dict[int, _ReadChannel] = {}
-    count = 0
-    error: Exception | None = None
     if len(head) < len(_MAGIC):
-        error = EndOfFile("file ends inside the magic bytes")
+        count, error = 0, EndOfFile("file ends inside the magic bytes")
     else:
-        reader = StreamReader(
-            _StrictBytesIO(data),
-            validate_crcs=True,
-            # No record can be longer than the file; this stops a corrupt length early.
-            record_size_limit=len(data),
-        )
-        records = reader.records
-        while True:
-            try:
-                record = next(records)
-            except StopIteration:
-                break
-            except _READ_ERRORS as exc:
-                error = exc
-                break
-            if isinstance(record, McapSchema):
-                schemas[record.id] = record
-            elif isinstance(record, McapChannel):
-                channel = _read_channel(record, schemas.get(record.schema_id), path)
-                channels[record.id] = channel
-                recording.messages.setdefault(channel.topic, [])
-            elif isinstance(record, McapMessage):
-                channel = channels.get(record.channel_id)
-                if topics is None or channel is None or channel.topic in topics:
-                    _append_message(recording, channels, record, path)
-                count += 1
+        count, error = _read_records(data, path, topics, recording)
 
     if error is not None:
         recording.truncated = True
@@ -762,10 +735,53 @@ def read_recording(
     return recording
 
 
+def _read_records(
+    data: bytes, path: Path, topics: Collection[str] | None, recording: Recording
+) -> tuple[int, Exception | None]:
+    """Reads ``data``'s records front to back into ``recording``, up to the first unreadable one.
+
+    Returns:
+        The number of messages read (those of topics not decoded included), and the error that
+        stopped the reading: a cut or a corrupt record; None when the records ran to their end.
+
+    Raises:
+        RecordError: as ``read_recording`` does, for a channel or message it refuses.
+    """
+    schemas: dict[int, McapSchema] = {}
+    channels: dict[int, _ReadChannel] = {}
+    count = 0
+    reader = StreamReader(
+        _StrictBytesIO(data),
+        validate_crcs=True,
+        # No record can be longer than the file; this stops a corrupt length early.
+        record_size_limit=len(data),
+    )
+    records = reader.records
+    while True:
+        try:
+            record = next(records)
+        except StopIteration:
+            return count, None
+        except _READ_ERRORS as exc:
+            return count, exc
+        if isinstance(record, McapSchema):
+            schemas[record.id] = record
+        elif isinstance(record, McapChannel):
+            channel = _read_channel(record, schemas.get(record.schema_id), path)
+            channels[record.id] = channel
+            recording.messages.setdefault(channel.topic, [])
+        elif isinstance(record, McapMessage):
+            channel = channels.get(record.channel_id)
+            if topics is None or channel is None or channel.topic in topics:
+                _append_message(recording, channels, record, path)
+            count += 1
+
+
 @dataclass(frozen=True)
 class _ReadChannel:
-    """How the reader presents one channel: its current topic name, its message encoding, and its
-    fields' current names (version-1 name -> current name; empty when nothing was renamed).
+    """How the reader presents one channel: current topic name, message encoding, field names.
+
+    The field names map each version-1 name to its current name; empty when nothing was renamed.
     """
 
     topic: str
@@ -793,8 +809,9 @@ def _read_channel(channel: McapChannel, schema: McapSchema | None, path: Path) -
 
 
 def _format_version(schema: McapSchema | None) -> int | None:
-    """The format version a schema's name carries (1 without ".vN"); None for no schema or one
-    that is not maskless's, whose messages are read as they are.
+    """The format version a schema's name carries (1 without ".vN").
+
+    None for no schema or one that is not maskless's, whose messages are read as they are.
     """
     match = None if schema is None else _SCHEMA_NAME.fullmatch(schema.name)
     if match is None:

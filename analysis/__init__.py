@@ -1,0 +1,1 @@
+"""The analyses: run metrics, identification, stability, the operating range, and their plots."""

@@ -35,9 +35,11 @@ def plot_closed_loop(
     outlet_command_a: np.ndarray | None = None,
     tolerance_m: float | None = None,
 ) -> Path:
-    """Heights (reference, true head, each local track, fused track) above the valve commands
-    (inlet, and outlet when given), on a shared time axis. All height arrays are sampled at
-    ``times_s``. Returns the written path.
+    """Heights above the valve commands, on a shared time axis; returns the written path.
+
+    The heights are the reference, the true head, each local track and the fused track; the valve
+    commands are the inlet's, and the outlet's when given. All height arrays are sampled at
+    ``times_s``.
     """
     # Imported here: matplotlib is a third of the command's start-up, and `maskless simulate`
     # renders in a second process. A bare Figure needs no GUI backend and no pyplot.

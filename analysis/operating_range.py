@@ -1,5 +1,6 @@
-"""The pneumatic plant's operating range: where each valve current holds the head, and how the
-plant behaves there.
+"""The pneumatic plant's operating range, and how the plant behaves there.
+
+The operating range is where each valve current holds the head.
 
 For each coil current of one valve (the other held), ``operating_range`` gives the steady state
 (``pneumatic_plant.equilibrium_state``: lift and bladder gauge pressure) and Drake's ``Linearize``
@@ -55,8 +56,9 @@ class OperatingRange:
 
 
 def valve_currents_a(p: PneumaticParameters, valve: str, num_points: int) -> np.ndarray:
-    """``num_points`` coil currents evenly spaced from the valve's starting to its saturation
-    current (A).
+    """``num_points`` coil currents (A), evenly spaced over the valve's range.
+
+    They run from the valve's starting to its saturation current.
 
     Args:
         p: the plant's parameters.
@@ -134,8 +136,9 @@ def operating_range(
 
 
 def default_operating_ranges(p: PneumaticParameters, num_points: int) -> dict[str, OperatingRange]:
-    """Both valves over their current ranges: the inlet with the outlet shut; the outlet with the
-    inlet fully open.
+    """Both valves over their current ranges, each with the other valve at one end of its range.
+
+    The inlet is swept with the outlet shut; the outlet with the inlet fully open.
 
     The outlet is swept against the full inlet because that is where it holds the widest range
     of lifts: with the inlet shut (as the split-range allocation drives it) the bladder's leak

@@ -1,5 +1,6 @@
-"""Clinical accuracy: Monte Carlo of reference steps on the pneumatic plant, new controller beside
-the paper's. Prints one JSON line and writes a plot.
+"""Clinical accuracy: Monte Carlo of reference steps on the pneumatic plant, both controllers.
+
+The new controller runs beside the paper's. Prints one JSON line and writes a plot.
 
 Each trial draws a head mass (uniform 4-6 kg), a step size (uniform 2-10 mm) and direction, and a
 start lift that keeps start and target inside the bladder's working range for that head; the
@@ -53,9 +54,10 @@ SETTLE_TARGET_S = 10.0
 
 
 def draw_trial(rng: np.random.Generator, config, top_lift_m: float) -> dict:
-    """A head mass, a signed step and a start lift (in the nominal head's lift, which sets the
-    starting current) that keep the actual start and target reachable; ``top_lift_m`` is
-    ``nominal_top_lift_m(config)``.
+    """A head mass, a signed step and a start lift that keep the actual start and target reachable.
+
+    The start lift is in the nominal head's lift, which sets the starting current; ``top_lift_m``
+    is ``nominal_top_lift_m(config)``.
     """
     p = config.pneumatic
     mass = rng.uniform(*HEAD_MASS_RANGE_KG)
@@ -93,9 +95,11 @@ def trial_config(base, seed: int, trial: dict, controller: str):
 
 
 def fastest_entry_s(base, nominal, trial: dict) -> float | None:
-    """How soon after the step the head can first come within the tolerance of the target with
-    the valves driven flat out (the inlet saturated up, the outlet saturated down): a bound on
-    any controller's settle time with these valves. None if it never does within the run.
+    """How soon after the step the head can first come within tolerance, valves driven flat out.
+
+    The inlet is saturated for a step up, the outlet for a step down; the time the head first
+    comes within the tolerance of the target is a bound on any controller's settle time with
+    these valves. None if it never does within the run.
     """
     config = trial_config(base, 0, trial, "offset-free-lqg")
     builder = DiagramBuilder()

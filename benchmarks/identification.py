@@ -37,8 +37,9 @@ from machine import machine_description  # noqa: E402
 
 
 def judge(estimate, order, samples, repeats):
-    """Best time of ``repeats`` fits on ``samples``, and the model's accuracy on a validation
-    stretch of 20 % more samples.
+    """Best time of ``repeats`` fits on ``samples``, and the model's accuracy on validation.
+
+    The validation stretch holds 20 % more samples.
     """
     u, y, a, b = simulate_record(order, "coloured", int(samples * 1.2), seed=7)
     ue, ye, uv, yv = u[:samples], y[:samples], u[samples:], y[samples:]

@@ -1,0 +1,1 @@
+"""The library: the scenario, the closed loop, and one module per command."""

@@ -46,6 +46,13 @@ class BackgroundTask:
     """``function(*args)`` running in a forked child from now on."""
 
     def __init__(self, description: str, function: Callable, *args):
+        """Forks the child running ``function(*args)``, or runs it here where fork is unsafe.
+
+        Args:
+            description: what the task does, as a failure's message names it.
+            function: the work.
+            *args: its arguments.
+        """
         self._child = _Child(description, function, *args) if _FORK_IS_SAFE else None
         if self._child is None:
             function(*args)
@@ -67,12 +74,21 @@ class _Replay:
 
 
 class Worker:
-    """A forked child running ``serve(connection, *args)``, which reads with ``connection.recv()``
-    the objects ``send`` passes, then None once the caller is done. (An end marker, not the
-    pipe's end: a child forked later holds a copy of the pipe, so closing it ends nothing.)
+    """A forked child running ``serve(connection, *args)``, fed the objects ``send`` passes.
+
+    The child reads them with ``connection.recv()``, then None once the caller is done. (An end
+    marker, not the pipe's end: a child forked later holds a copy of the pipe, so closing it ends
+    nothing.)
     """
 
     def __init__(self, description: str, serve: Callable, *args):
+        """Forks the child now; where fork is unsafe, ``wait`` serves what was sent in the caller.
+
+        Args:
+            description: what the worker does, as a failure's message names it.
+            serve: the serve function, called as ``serve(connection, *args)``.
+            *args: its further arguments.
+        """
         self._serve, self._args = serve, args
         self._child = None
         self._unsent: list = []
@@ -82,8 +98,9 @@ class Worker:
             receiver.close()
 
     def send(self, message) -> None:
-        """Passes ``message`` (picklable) to the child. If the child has died, nothing happens
-        here: ``wait`` reports it.
+        """Passes ``message`` (picklable) to the child.
+
+        If the child has died, nothing happens here: ``wait`` reports it.
         """
         if self._child is None:
             self._unsent.append(message)
@@ -108,8 +125,9 @@ class Worker:
 
 
 def serve_calls(connection, warm_up: Callable[[], None]) -> None:
-    """A ``Worker`` serve function: ``warm_up()`` at once, then each ``(function, args, kwargs)``
-    received, in order, until None.
+    """A ``Worker`` serve function: ``warm_up()`` at once, then each call received, until None.
+
+    The calls are ``(function, args, kwargs)``, made in the order received.
     """
     warm_up()
     while (call := connection.recv()) is not None:

@@ -1,5 +1,6 @@
-"""maskless: simulate, identify and control a soft-robot head positioner for mask-free head-and-neck
-radiotherapy. Each subcommand's --help says more.
+"""maskless: simulate, identify and control a soft-robot head positioner.
+
+The positioner is for mask-free head-and-neck radiotherapy. Each subcommand's --help says more.
 """
 
 import argparse

@@ -106,8 +106,9 @@ def make_reference_trajectory(reference: ReferenceConfig, start_height_m: float)
 
 
 def _add_loggers(builder: DiagramBuilder, logged: dict) -> dict[str, tuple[VectorLogSink, slice]]:
-    """One VectorLogSink per logging period, fed by a Multiplexer of that period's signals: each
-    sink is a publish event every period, so fewer sinks make a cheaper step.
+    """One VectorLogSink per logging period, fed by a Multiplexer of that period's signals.
+
+    Each sink is a publish event every period, so fewer sinks make a cheaper step.
     """
     by_period: dict[float, list[str]] = {}
     for signal, (_, period_s) in logged.items():
@@ -129,8 +130,10 @@ def _add_loggers(builder: DiagramBuilder, logged: dict) -> dict[str, tuple[Vecto
 def add_plant(
     builder: DiagramBuilder, config: Scenario, nominal: "NominalPneumatic | None"
 ) -> AddedPlant:
-    """Adds ``config.plant``, at rest at ``config.start_lift_m`` for the pneumatic plant (whose
-    starting currents come from ``nominal``'s allocation) or at the model's operating point.
+    """Adds ``config.plant``, at rest where it starts.
+
+    The pneumatic plant rests at ``config.start_lift_m`` (its starting currents come from
+    ``nominal``'s allocation); a model rests at its operating point.
     """
     if isinstance(config.plant, PneumaticPlant):
         p = config.pneumatic
@@ -172,8 +175,9 @@ class SensingChain:
 def add_sensing_chain(
     builder: DiagramBuilder, config: Scenario, head_height: OutputPort, start_height_m
 ) -> SensingChain:
-    """Adds every camera watching ``head_height``, a local Kalman filter on each (starting at
-    ``start_height_m``) and the track-to-track fusion of their tracks.
+    """Adds every camera watching ``head_height``, a local Kalman filter on each, and the fusion.
+
+    The filters start at ``start_height_m``; the track-to-track fusion combines their tracks.
     """
     variances = paper_filter_variances_si(config.paper)
     sensor_names = list(config.cameras)
@@ -211,9 +215,11 @@ def export_and_log(
     command_period_s: float,
     record: bool,
 ) -> dict[str, tuple[VectorLogSink, slice]]:
-    """Exports ``loop_outputs`` (reference, head height, valve currents) and every sensing output
-    under its namespaced name, and logs each when ``record``: camera frames at their frame period,
-    the rest at ``command_period_s``, so estimates and commands share timestamps.
+    """Exports ``loop_outputs`` and every sensing output, and logs each when ``record``.
+
+    ``loop_outputs`` are the reference, head height and valve currents; each sensing output is
+    exported under its namespaced name. Camera frames are logged at their frame period, the rest at
+    ``command_period_s``, so estimates and commands share timestamps.
     """
     exported = dict(loop_outputs)
     exported["fusion.estimated_state"] = sensing.fusion.outputs["estimated_state"]
@@ -345,9 +351,11 @@ def assemble_loop(
     model=None,
     design=None,
 ) -> ClosedLoop:
-    """Finishes a loop around ``plant``: ``drive``'s commands into the valves, the cameras,
-    filters and fusion watching the head (and feeding the controller, if any), every output
-    exported and logged, the Diagram built and named.
+    """Finishes a loop around ``plant``: valves driven, head watched, outputs logged, Diagram built.
+
+    ``drive``'s commands go into the valves; the cameras, filters and fusion watch the head (and
+    feed the controller, if any); every output is exported and logged; the Diagram is built and
+    named.
     """
     builder.Connect(drive.inlet, plant.inlet)
     builder.Connect(drive.outlet, plant.outlet)
@@ -388,8 +396,10 @@ def assemble_loop(
 def logged_signals(
     closed_loop: ClosedLoop, context, taken: dict | None = None
 ) -> dict[str, Signal]:
-    """Every logged output of ``closed_loop`` in ``context``, by its exported name; with ``taken``
-    (log sink -> samples already taken, updated here), only the samples logged since.
+    """Every logged output of ``closed_loop`` in ``context``, by its exported name.
+
+    With ``taken`` (log sink -> samples already taken, updated here), only the samples logged
+    since.
     """
     taken = {} if taken is None else taken
     first = {sink: taken.get(sink, 0) for sink, _ in closed_loop.loggers.values()}

@@ -1,6 +1,8 @@
-"""Designing the controllers a scenario runs: the offset-free LQG on the nominal pneumatic
-plant's linearisation or on a linear model (identified, or the paper's), and what a controller may
-know of the plant (its nominal parameters, never the simulated patient's).
+"""Designing the controllers a scenario runs, and what a controller may know of the plant.
+
+The offset-free LQG is designed on the nominal pneumatic plant's linearisation or on a linear model
+(identified, or the paper's). A controller knows the plant's nominal parameters, never the
+simulated patient's.
 
 ``design_controller`` is the public entry point; ``closed_loop.build_closed_loop`` and the
 stability analysis design through ``offset_free_design``, so all three get the same gains.
@@ -38,8 +40,10 @@ IDENTIFIED_MODEL_DELAY_SAMPLES = 1
 
 @dataclass
 class NominalPneumatic:
-    """What a controller may know of the pneumatic plant: the nominal head's parameters and their
-    Hammerstein inverse. Built once per loop: the inverse samples 400 steady states.
+    """What a controller may know of the pneumatic plant: the nominal head's parameters.
+
+    With them goes their Hammerstein inverse (``allocation``). Built once per loop: the inverse
+    samples 400 steady states.
     """
 
     parameters: PneumaticParameters
@@ -47,6 +51,7 @@ class NominalPneumatic:
 
     @classmethod
     def of(cls, config: Scenario) -> "NominalPneumatic":
+        """``config.pneumatic`` at its nominal head mass, and the allocation that inverts it."""
         p = config.pneumatic
         nominal = dataclasses.replace(p, head_mass_kg=p.nominal_head_mass_kg)
         allocation = pneumatic_allocation(nominal, config.offset_free_lqg.outlet_full_open_below_m)
@@ -59,8 +64,9 @@ def paper_valve_currents_a(paper) -> tuple[float, float]:
 
 
 def inlet_current_range_a(config: Scenario) -> tuple[float, float]:
-    """The (starting, saturation) currents of the inlet valve of ``config.plant`` (A): the
-    pneumatic plant's own valve, or the paper's valve in front of a linear model.
+    """The (starting, saturation) currents of the inlet valve of ``config.plant`` (A).
+
+    That is the pneumatic plant's own valve, or the paper's valve in front of a linear model.
     """
     if isinstance(config.plant, PneumaticPlant):
         inlet = config.pneumatic.inlet
@@ -69,9 +75,10 @@ def inlet_current_range_a(config: Scenario) -> tuple[float, float]:
 
 
 def linear_plant_model(config: Scenario) -> tuple[LinearModel, float | None]:
-    """(model, camera height) of a linear plant: the paper's model, whose output is the distance
-    from ``config.plant.camera`` (at that camera's height, m), or a model file whose output is
-    the head height (camera height None).
+    """(model, camera height) of a linear plant.
+
+    The model is the paper's, whose output is the distance from ``config.plant.camera`` (at that
+    camera's height, m), or a model file's, whose output is the head height (camera height None).
     """
     if isinstance(config.plant, PaperPlant):
         # The model was identified on the fused distance in the Kinect v2 frame (Sec. III-B).
@@ -81,9 +88,11 @@ def linear_plant_model(config: Scenario) -> tuple[LinearModel, float | None]:
 
 
 def measurement_delay_samples(config: Scenario) -> int:
-    """Controller ticks between the head's height and the fused estimate the controller reads:
-    the slowest camera's latency (whole frames), plus one tick because the controller reads the
-    local filters' state as it was before its own tick (fusion passes it straight through).
+    """Controller ticks between the head's height and the fused estimate the controller reads.
+
+    That is the slowest camera's latency (whole frames), plus one tick because the controller
+    reads the local filters' state as it was before its own tick (fusion passes it straight
+    through).
     """
     period_s = config.offset_free_lqg.sample_period_s
     latency_s = max(
@@ -93,9 +102,10 @@ def measurement_delay_samples(config: Scenario) -> int:
 
 
 def pneumatic_offset_free_design(config: Scenario, nominal: "NominalPneumatic"):
-    """The offset-free LQG for the pneumatic plant: designed on the nominal head's plant
-    linearised at the configured operating lift, for the configured cameras' measurement delay
-    (the model's output is the head height itself).
+    """The offset-free LQG for the pneumatic plant.
+
+    It is designed on the nominal head's plant linearised at the configured operating lift, for
+    the configured cameras' measurement delay (the model's output is the head height itself).
     """
     settings = config.offset_free_lqg
     model = pneumatic_design_model(
@@ -110,9 +120,10 @@ def pneumatic_offset_free_design(config: Scenario, nominal: "NominalPneumatic"):
 def offset_free_design(
     config: Scenario, nominal: NominalPneumatic | None = None
 ) -> tuple[OffsetFreeLqgDesign, SplitRangeAllocation]:
-    """(design, allocation) of the offset-free LQG as ``config``'s closed loop runs it: on the
-    nominal pneumatic plant's linearisation, or on the linear model the controller's
-    ``design_model_file`` (or else the linear plant) holds.
+    """(design, allocation) of the offset-free LQG as ``config``'s closed loop runs it.
+
+    The design is on the nominal pneumatic plant's linearisation, or on the linear model the
+    controller's ``design_model_file`` (or else the linear plant) holds.
 
     Args:
         config: a validated scenario; its controller is taken as ``OffsetFreeLqg()`` unless it
@@ -144,8 +155,9 @@ def offset_free_design(
 
 
 def identified_model_weights(config: Scenario) -> OffsetFreeLqgWeights:
-    """The scenario's weights for a design on an identified model: no state process noise (its
-    innovations form already carries the noise).
+    """The scenario's weights for a design on an identified model: no state process noise.
+
+    The model's innovations form already carries the noise.
     """
     settings = config.offset_free_lqg
     return dataclasses.replace(

@@ -65,6 +65,8 @@ class ExcitationRequest:
     labels: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
+        """Raises ConfigError for the first field out of range, named as the user named it."""
+
         def require(condition, field_name, expected):
             if not condition:
                 value = getattr(self, field_name)
@@ -118,8 +120,10 @@ class ExcitationRun:
 
 
 def excite(scenario: Scenario, request: ExcitationRequest) -> ExcitationRun:
-    """Designs the excitation ``request`` asks for, checks it, and runs it on ``scenario``'s
-    plant open loop for ``request.duration_s`` (the scenario's own duration is not used).
+    """Designs the excitation ``request`` asks for, checks it, and runs it on the plant open loop.
+
+    The plant is ``scenario``'s; the run lasts ``request.duration_s`` (the scenario's own duration
+    is not used).
 
     Raises:
         ConfigError: a PRBS with fewer than two bits, or an excitation that clipping to the
@@ -162,8 +166,9 @@ def excite(scenario: Scenario, request: ExcitationRequest) -> ExcitationRun:
 
 
 def excite_to_files(scenario: Scenario, request: ExcitationRequest, out: str | Path) -> dict:
-    """``excite``, writing OUT/run.mcap and OUT/run.png (``maskless excite``); returns the
-    summary with the files written (``files``).
+    """``excite``, writing OUT/run.mcap and OUT/run.png (``maskless excite``).
+
+    Returns the summary with the files written (``files``).
     """
     experiment = excite(scenario, request)
     out = Path(out)
@@ -175,9 +180,11 @@ def excite_to_files(scenario: Scenario, request: ExcitationRequest, out: str | P
 def build_excitation_loop(
     config: Scenario, signal: ExcitationSignal, record: bool = True
 ) -> ClosedLoop:
-    """The plant driven open loop by ``signal`` on its inlet (outlet shut), watched by the
-    cameras, local filters and fusion; outputs and logs as ``build_closed_loop``'s, logged at the
-    signal's sample period. ``controller`` is "excitation", and model and design are None.
+    """The plant driven open loop by ``signal`` on its inlet (outlet shut), the head watched.
+
+    The cameras, local filters and fusion watch the head; outputs and logs are as
+    ``build_closed_loop``'s, logged at the signal's sample period. ``controller`` is "excitation",
+    and model and design are None.
     """
     builder = DiagramBuilder()
     nominal = NominalPneumatic.of(config) if isinstance(config.plant, PneumaticPlant) else None

@@ -1,5 +1,7 @@
-"""Identifying models from a recorded experiment, as `maskless identify` does: the request, the
-record read from CSV or a maskless MCAP recording, the fits and their report, and the files.
+"""Identifying models from a recorded experiment, as `maskless identify` does.
+
+Holds the request, the record read from CSV or a maskless MCAP recording, the fits and their
+report, and the files.
 
 The figures and the verdict come from ``analysis.identification.report``; this module reads the
 record, chooses its parts and writes the results.
@@ -85,6 +87,7 @@ class IdentificationRequest:
     labels: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
+        """Makes the files Paths and the orders a tuple; RecordError for a field out of range."""
         if self.input is not None:
             object.__setattr__(self, "input", Path(self.input))
         if self.output is not None:
@@ -154,8 +157,9 @@ def _field_unit(topic_and_field: str) -> str:
 def read_record(
     request: IdentificationRequest,
 ) -> tuple[np.ndarray, np.ndarray, tuple[str, str]]:
-    """The input and output records and their units, refused with the file named when they
-    cannot be used.
+    """The input and output records and their units.
+
+    Records that cannot be used are refused with the file named.
     """
     label = request.label
     output_path = request.output or request.input
@@ -210,8 +214,10 @@ def minimum_samples(orders: list[int], method: str) -> int:
 
 
 def identify_record(request: IdentificationRequest) -> "IdentificationRun":
-    """Reads the record ``request`` names, fits each order on its estimation part and judges it
-    on both parts (see ``analysis.identification.report.identify``).
+    """Reads the record ``request`` names, fits each order and judges it.
+
+    Each order is fitted on the estimation part and judged on both parts (see
+    ``analysis.identification.report.identify``).
 
     Raises:
         RecordError: a record that cannot be read or used as asked, naming the file and field.
@@ -316,8 +322,10 @@ def identify_to_files(request: IdentificationRequest, out: str | Path) -> dict:
 
 
 def write_identification(identified: "IdentificationRun", out: str | Path) -> dict:
-    """Writes OUT/report.json, one model file per order and the compare and residual plots (on
-    the second core meanwhile); returns the report with each model's file named.
+    """Writes OUT/report.json, one model file per order and the compare and residual plots.
+
+    The plots are drawn on the second core meanwhile. Returns the report with each model's file
+    named.
     """
     fitted_models, parts, report = identified.fitted_models, identified.parts, identified.report
     offsets, units, request = identified.offsets, identified.units, identified.request

@@ -1,6 +1,7 @@
-"""Analyses of the pneumatic plant and the controllers, as `maskless analyze` reports them: the
-operating range (steady lift, pressure, gain and time constants per valve current) and loop
-stability (poles and margins of both controllers, against lift, head mass and latency).
+"""Analyses of the pneumatic plant and the controllers, as `maskless analyze` reports them.
+
+They are the operating range (steady lift, pressure, gain and time constants per valve current)
+and loop stability (poles and margins of both controllers, against lift, head mass and latency).
 
 The computations are in ``analysis.operating_range`` and ``analysis.stability``; this module
 builds their inputs from a scenario, turns the results into JSON-ready reports and text, and
@@ -40,6 +41,7 @@ class StabilityRequest:
     labels: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
+        """Raises ConfigError for the first field out of range, named as the user named it."""
         label = self.label
         if not self.lifts_m or not all(math.isfinite(lift) for lift in self.lifts_m):
             raise ConfigError(f"{label('lifts_m')} {self.lifts_m}: expected finite lifts")
@@ -62,10 +64,11 @@ class StabilityRequest:
 
 
 def analyze_operating_range(scenario: Scenario, points: int = 22, out: str | Path | None = None):
-    """Sweeps each valve's current over ``points`` currents from starting to saturation (the
-    inlet with the outlet shut; the outlet with the inlet fully open): steady lift, pressure,
-    Drake's linearisation there. Returns the JSON-ready report; with ``out``, also writes
-    OUT/operating_range.json and OUT/operating_range.png, named under ``files``.
+    """Sweeps each valve's current: steady lift, pressure, and Drake's linearisation there.
+
+    Each valve takes ``points`` currents from starting to saturation (the inlet with the outlet
+    shut; the outlet with the inlet fully open). Returns the JSON-ready report; with ``out``, also
+    writes OUT/operating_range.json and OUT/operating_range.png, named under ``files``.
     """
     from maskless.analysis.operating_range import default_operating_ranges
 
@@ -174,10 +177,11 @@ def format_operating_range(report: dict, head_mass_kg: float) -> str:
 
 
 def offset_free_setup(config):
-    """(nominal parameters, allocation, design) of the offset-free LQG as
-    ``closed_loop.build_closed_loop`` designs it for the pneumatic plant: the nominal head's
-    parameters and their Hammerstein inverse (``NominalPneumatic``), the plant linearised at the
-    configured operating lift, and the measurement delay of the configured cameras.
+    """(nominal parameters, allocation, design) of the offset-free LQG for the pneumatic plant.
+
+    As ``closed_loop.build_closed_loop`` designs it: the nominal head's parameters and their
+    Hammerstein inverse (``NominalPneumatic``), the plant linearised at the configured operating
+    lift, and the measurement delay of the configured cameras.
     """
     from maskless.diagrams.controller_design import (
         NominalPneumatic,
@@ -242,8 +246,9 @@ def _case_report(case, latency_requirement_s: float) -> dict:
 
 
 def stability_report(paper, cases, design, plant_head_mass_kg: float) -> dict:
-    """The stability analysis as a JSON-ready dict (SI, with mm, mA, dB and degrees where the
-    field name says so).
+    """The stability analysis as a JSON-ready dict.
+
+    Values are SI, with mm, mA, dB and degrees where the field name says so.
 
     Args:
         paper: ``loop_robustness.analyze_paper_loop``.
@@ -305,8 +310,9 @@ def _paper_lines(paper: dict) -> list[str]:
 
 
 def format_stability(report: dict) -> str:
-    """The stability report as lines a person reads: one row per lift and head mass, the margins
-    at each extra latency side by side.
+    """The stability report as lines a person reads.
+
+    One row per lift and head mass, the margins at each extra latency side by side.
     """
     o = report["offset_free_lqg"]
     d = o["design"]
@@ -356,8 +362,9 @@ def format_stability(report: dict) -> str:
 
 
 def _checked_cases(scenario: Scenario, request: StabilityRequest, allocation):
-    """(lifts (m), mass factors, extra latencies (ticks)) of ``request``, with 1 and 0 added,
-    refused where a head cannot rest at a lift.
+    """(lifts (m), mass factors, extra latencies (ticks)) of ``request``, with 1 and 0 added.
+
+    Refused where a head cannot rest at a lift.
     """
     from maskless.analysis.stability.loop_robustness import holdable_lift_range_m
     from maskless.systems.units import m_to_mm
@@ -388,11 +395,12 @@ def _checked_cases(scenario: Scenario, request: StabilityRequest, allocation):
 def analyze_stability(
     scenario: Scenario, request: StabilityRequest | None = None, out: str | Path | None = None
 ) -> dict:
-    """The paper's LQG on the paper's model, and the offset-free LQG (designed as the closed
-    loop designs it) on the pneumatic plant linearised at each lift, head mass and extra latency
-    of ``request``: closed-loop poles, gain, phase and delay margins. Returns the JSON-ready
-    report; with ``out``, also writes OUT/stability.json and three plots, named under
-    ``files``.
+    """Closed-loop poles and gain, phase and delay margins of both controllers.
+
+    The paper's LQG on the paper's model, and the offset-free LQG (designed as the closed loop
+    designs it) on the pneumatic plant linearised at each lift, head mass and extra latency of
+    ``request``. Returns the JSON-ready report; with ``out``, also writes OUT/stability.json and
+    three plots, named under ``files``.
     """
     from maskless.analysis.stability.loop_robustness import analyze_paper_loop, robustness_cases
     from maskless.systems.control.paper_lqg import paper_lqg

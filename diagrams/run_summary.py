@@ -17,8 +17,10 @@ if TYPE_CHECKING:
 
 
 def estimation_start_s(config, times_s) -> float:
-    """When estimates start to be judged: once the filters have forgotten their initial guess
-    (``metrics.estimation_start_s``), or half-way through a shorter run.
+    """When estimates start to be judged (s).
+
+    That is once the filters have forgotten their initial guess (``metrics.estimation_start_s``),
+    or half-way through a shorter run.
     """
     return min(config.metrics.estimation_start_s, float(times_s[-1]) / 2)
 

@@ -40,8 +40,9 @@ from maskless.systems.sensing.local_kalman_filter import LocalFilterConfig
 
 @dataclass
 class PneumaticPlant:
-    """The first-principles robot ("the real robot"); its constants are the scenario's
-    ``pneumatic`` section.
+    """The first-principles robot ("the real robot").
+
+    Its constants are the scenario's ``pneumatic`` section.
     """
 
 
@@ -59,8 +60,9 @@ class PaperPlant:
 
 @dataclass
 class IdentifiedPlant:
-    """A model `maskless identify` wrote, whose output is the head height, behind the paper's
-    valve map.
+    """A model `maskless identify` wrote, behind the paper's valve map.
+
+    The model's output is the head height.
 
     Attributes:
         model_file: the model's YAML file.
@@ -246,8 +248,9 @@ MAX_RANDOM_SEED = 2**32 - 1
 
 
 def load_scenario(path: str | Path | None = None, **overrides) -> Scenario:
-    """The shipped defaults, overridden by the YAML file at ``path`` and then by ``overrides``,
-    validated once.
+    """The shipped defaults, overridden by a YAML file and then by ``overrides``, validated once.
+
+    The YAML file is the one at ``path``.
 
     Args:
         path: a scenario YAML file, or None for the shipped defaults.

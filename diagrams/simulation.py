@@ -45,8 +45,9 @@ class SimulationRun:
 
     @functools.cached_property
     def metrics(self) -> dict:
-        """Tracking, estimation and controller figures (mm, mA and s), as
-        ``maskless simulate --json`` prints them (less the timing and the files written).
+        """Tracking, estimation and controller figures (mm, mA and s).
+
+        They are what ``maskless simulate --json`` prints, less the timing and the files written.
         """
         return summarize(self)
 
@@ -69,8 +70,9 @@ class SimulationRun:
         return path
 
     def plot_arguments(self, show_tolerance: bool = True) -> dict:
-        """``plot_closed_loop``'s keyword arguments: arrays and strings, which pickle (a worker
-        process can draw them).
+        """``plot_closed_loop``'s keyword arguments, as arrays and strings.
+
+        Arrays and strings pickle, so a worker process can draw them.
         """
         s = self.signals
         return dict(
@@ -91,8 +93,9 @@ class SimulationRun:
         )
 
     def plot(self, path: str | Path, show_tolerance: bool = True) -> Path:
-        """Draws head height, reference, tracks and valve commands to ``path`` (PNG), with the
-        clinical band about the reference when ``show_tolerance``.
+        """Draws head height, reference, tracks and valve commands to ``path`` (PNG).
+
+        The clinical band about the reference is drawn when ``show_tolerance``.
         """
         from maskless.analysis.closed_loop_plots import plot_closed_loop
 
@@ -109,8 +112,9 @@ def simulate(
     on_chunk: Callable[[dict[str, Signal]], None] | None = None,
     nominal=None,
 ) -> SimulationRun:
-    """Builds and simulates ``scenario``'s closed loop for its ``duration_s``, seeded with its
-    ``random_seed``.
+    """Builds and simulates ``scenario``'s closed loop.
+
+    It runs for the scenario's ``duration_s``, seeded with its ``random_seed``.
 
     Args:
         scenario: a validated scenario (``load_scenario``).
@@ -132,8 +136,9 @@ def simulate_loop(
     progress: Callable[[float, float], None] | None = None,
     on_chunk: Callable[[dict[str, Signal]], None] | None = None,
 ) -> SimulationRun:
-    """Simulates a built loop for ``scenario.duration_s``, seeded with ``scenario.random_seed``,
-    and collects its logs (see ``simulate`` for the callbacks).
+    """Simulates a built loop and collects its logs (see ``simulate`` for the callbacks).
+
+    It runs for ``scenario.duration_s``, seeded with ``scenario.random_seed``.
     """
     simulator = Simulator(closed_loop.diagram)
     context = simulator.get_mutable_context()
@@ -153,8 +158,10 @@ def simulate_loop(
 
 
 def simulate_to_files(scenario: Scenario, out: str | Path) -> dict:
-    """Simulates ``scenario``, writing OUT/run.mcap while the loop runs and OUT/run.png after
-    (``maskless simulate``); runs of 10 minutes or more report progress on stderr.
+    """Simulates ``scenario``, writing OUT/run.mcap and OUT/run.png (``maskless simulate``).
+
+    The recording is written while the loop runs, the plot after. Runs of 10 minutes or more
+    report progress on stderr.
 
     Returns:
         The run's metrics with its timing and the files written (``files``).

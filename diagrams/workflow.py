@@ -56,8 +56,9 @@ def excite_command(request: ExcitationRequest, seed: int, config: Path | None, o
 
 
 def identify_command(request: IdentificationRequest, out: Path) -> str:
-    """The `maskless identify` command line that runs ``request`` (the fields the workflow
-    sets; the rest at their defaults).
+    """The `maskless identify` command line that runs ``request``.
+
+    It gives the fields the workflow sets; the rest stay at their defaults.
     """
     argv = ["--input", str(request.input), "--ts", repr(request.ts)]
     argv += ["--orders", ",".join(map(str, request.orders)), "--method", request.method]

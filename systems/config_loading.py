@@ -33,8 +33,9 @@ def asset_path(name: str) -> Path:
 
 @dataclasses.dataclass(frozen=True)
 class _Tagged:
-    """A YAML node written with a type tag (``!IdentifiedPlant {...}``): the tag picks one
-    alternative of a ``Union`` field, as in ``yaml_load_typed``.
+    """A YAML node written with a type tag (``!IdentifiedPlant {...}``).
+
+    The tag picks one alternative of a ``Union`` field, as in ``yaml_load_typed``.
     """
 
     tag: str
@@ -72,8 +73,10 @@ _TagWritingDumper.add_representer(_Tagged, _represent_tagged)
 
 
 def _dataclass_alternatives(annotation) -> tuple[type, ...]:
-    """The dataclasses an annotation allows: one for a plain or Optional dataclass field, several
-    for a Union of dataclasses (chosen in YAML by tag), none for anything else.
+    """The dataclasses an annotation allows.
+
+    One for a plain or Optional dataclass field, several for a Union of dataclasses (chosen in
+    YAML by tag), none for anything else.
     """
     if dataclasses.is_dataclass(annotation):
         return (annotation,)
@@ -81,10 +84,11 @@ def _dataclass_alternatives(annotation) -> tuple[type, ...]:
 
 
 def _checked_tree(tree, schema, default, filename: str, prefix: str = ""):
-    """``tree`` checked against ``schema`` (unknown fields, wrong types, unknown tags), with the
-    tag of every ``Union`` value made explicit. An untagged value keeps the type of the default it
-    overrides: ``yaml_load_typed`` would read it as the Union's first alternative and so quietly
-    turn, say, a Kinect v2 entry into a Kinect v1.
+    """``tree`` checked against ``schema``, with the tag of every ``Union`` value made explicit.
+
+    The check finds unknown fields, wrong types and unknown tags. An untagged value keeps the type
+    of the default it overrides: ``yaml_load_typed`` would read it as the Union's first
+    alternative and so quietly turn, say, a Kinect v2 entry into a Kinect v1.
     """
     if not isinstance(tree, dict):
         where = f"field '{prefix.rstrip('.')}'" if prefix else "the top level"
@@ -180,8 +184,9 @@ def _check_scalar_type(value, annotation, filename: str, dotted_name: str) -> No
 
 
 def find_unset_fields(config, prefix: str = "") -> list[str]:
-    """Dotted names of float fields still at ``UNSET`` (NaN) anywhere in a dataclass tree (mapping
-    values included).
+    """Dotted names of float fields still at ``UNSET`` (NaN) anywhere in a dataclass tree.
+
+    Mapping values are included.
     """
     unset = []
     for field in dataclasses.fields(config):

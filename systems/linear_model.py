@@ -90,6 +90,7 @@ class LinearModel:
     innovations_variance: float | None = None
 
     def __post_init__(self):
+        """Checks shapes, numbers and units (ModelError); stores arrays and numbers as floats."""
         A = np.asarray(self.A, dtype=float)
         if A.ndim != 2 or A.shape[0] != A.shape[1]:
             raise ModelError(f"A must be a square 2-D array (n, n), got shape {A.shape}")
@@ -145,8 +146,9 @@ class LinearModel:
         return stable(self.poles())
 
     def dc_gain(self) -> float:
-        """The steady output per unit steady input, C (I - A)⁻¹ B + D (``output_unit`` per
-        ``input_unit``).
+        """The steady output per unit steady input, C (I - A)⁻¹ B + D.
+
+        In ``output_unit`` per ``input_unit``.
 
         Raises:
             ModelError: a pole within ``INTEGRATOR_DISTANCE`` of z = 1, which it names.
@@ -245,8 +247,10 @@ class LinearModel:
         return self.transfer_function(np.exp(1j * omega * self.sample_period_s))
 
     def output_subtracted_from(self, total: float) -> "LinearModel":
-        """The same model with output total - y: a camera-to-head distance as the head's height
-        above the table, ``total`` being the camera's height (``output_unit``).
+        """The same model with output total - y.
+
+        This turns a camera-to-head distance into the head's height above the table, ``total``
+        being the camera's height (``output_unit``).
 
         C, D and K change sign (the innovations of -y are -e, with the same variance) and the
         operating output becomes total - y_op.

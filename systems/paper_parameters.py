@@ -126,8 +126,10 @@ def paper_lqg_weights(paper: PaperParameters) -> LqgWeights:
 
 
 def paper_filter_variances_si(paper: PaperParameters) -> dict[str, float]:
-    """The local filters' variances in SI: acceleration (m²/s⁴) and, by camera model
-    (``kinect_v1``, ``kinect_v2``), the measurement variance (m²).
+    """The local filters' variances in SI.
+
+    The acceleration variance (m²/s⁴) and, by camera model (``kinect_v1``, ``kinect_v2``), the
+    measurement variance (m²).
     """
     return {
         "acceleration_variance_m2_s4": mm2_to_m2(paper.acceleration_variance_mm2),

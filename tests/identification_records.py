@@ -19,8 +19,10 @@ TRUE_SYSTEMS = {
 
 
 def simulate_record(order: int, noise: str, samples: int, seed: int = 0):
-    """A(q) y = B(q) u + C(q) e with white u; C = 1 for "white" noise (equation error), C with the
-    listed zeros for "coloured". Returns u, y, the true A coefficients [1, a1..an] and b.
+    """A(q) y = B(q) u + C(q) e with white u; returns u, y, the true A coefficients and b.
+
+    C = 1 for "white" noise (equation error), C with the listed zeros for "coloured". The A
+    coefficients are [1, a1..an].
     """
     system = TRUE_SYSTEMS[order]
     rng = np.random.default_rng(seed)
@@ -33,8 +35,9 @@ def simulate_record(order: int, noise: str, samples: int, seed: int = 0):
 
 
 def load_paper_record():
-    """The authors' identification record with their preprocessing (whole-record mean removed),
-    or None when ../shared/paper-data is absent.
+    """The authors' identification record with their preprocessing (whole-record mean removed).
+
+    None when ../shared/paper-data is absent.
     """
     if not (PAPER_DATA / "inputUGWN3.csv").is_file():
         return None

@@ -15,6 +15,7 @@ def simulate_with_constant_inputs(system, inputs: dict, outputs: dict, duration_
         inputs: port name -> constant value (list).
         outputs: port name -> log period (s).
         duration_s: simulated time.
+        seed: the seed of the diagram's random context (``SetRandomContext``).
 
     Returns:
         port name -> (times, data) of each log.

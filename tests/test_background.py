@@ -1,3 +1,5 @@
+"""Forked background tasks and workers: they run, receive in order, and wait reports failures."""
+
 import sys
 from functools import partial
 

@@ -1,5 +1,6 @@
-"""The CLI's own pieces: one parser per command, built lazily, and flags turned into a scenario
-that names only the flags given.
+"""The CLI's own pieces: one parser per command, built lazily, and flags turned into a scenario.
+
+The scenario names only the flags given.
 """
 
 import argparse

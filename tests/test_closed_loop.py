@@ -1,3 +1,5 @@
+"""The closed-loop Diagram: its names, its recording read by mcap's own reader, Eq. 10, seeds."""
+
 import json
 
 import numpy as np

@@ -1,3 +1,5 @@
+"""Typed YAML configs: values over the defaults, and errors naming the file and the field."""
+
 from dataclasses import dataclass, field
 
 import pytest

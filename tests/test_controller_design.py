@@ -1,5 +1,6 @@
-"""design_controller: one entry point that gives the gains the closed loop runs, on a scenario or
-on a model, and names a model that cannot carry the design.
+"""design_controller: one entry point that gives the gains the closed loop runs.
+
+It designs on a scenario or on a model, and names a model that cannot carry the design.
 """
 
 import numpy as np

@@ -1,3 +1,5 @@
+"""The Kinect models: noise as Nguyen et al. and Fankhauser et al. publish it, frames, checks."""
+
 import math
 
 import numpy as np

@@ -1,5 +1,6 @@
-"""The error family: what a user can cause is a MasklessError naming it; the CLI prints it as one
-line and exits 2, and anything else keeps its traceback.
+"""The error family: what a user can cause is a MasklessError naming it.
+
+The CLI prints it as one line and exits 2, and anything else keeps its traceback.
 """
 
 import pytest

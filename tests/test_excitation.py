@@ -1,3 +1,5 @@
+"""Excitation signals: uniform noise (Eq. 22-23), PRBS and multisines against their closed forms."""
+
 import math
 
 import numpy as np

@@ -1,3 +1,5 @@
+"""Open-loop excitation runs: the recorded signal, the plant's equilibrium, clipping, bad flags."""
+
 import json
 import math
 

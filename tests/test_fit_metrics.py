@@ -1,3 +1,5 @@
+"""Fit figures (fit %, MSE, FPE, AIC, BIC) against hand examples and MATLAB's saved report."""
+
 import math
 
 import numpy as np

@@ -1,3 +1,5 @@
+"""maskless identify end to end: report and model files, MATLAB's figures on the paper record."""
+
 import json
 
 import numpy as np

@@ -1,3 +1,5 @@
+"""The innovations model: prediction and simulation against the state-space recursion and scipy."""
+
 import numpy as np
 import pytest
 import scipy.signal

@@ -1,6 +1,7 @@
-"""The architecture's one-way imports, checked on the source: assets and errors <- the recording
-format <- systems <- analysis <- diagrams (the library) <- commands and the CLI. No command
-imports another, and only the command layer knows argparse.
+"""The architecture's one-way imports, checked on the source.
+
+Assets and errors <- the recording format <- systems <- analysis <- diagrams (the library) <-
+commands and the CLI. No command imports another, and only the command layer knows argparse.
 """
 
 import ast

@@ -1,3 +1,5 @@
+"""LinearModel: DC gain, poles, steady targets and frequency response against scipy.signal."""
+
 import math
 
 import numpy as np

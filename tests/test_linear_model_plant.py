@@ -1,3 +1,5 @@
+"""The linear-model plant: its ports, Eq. 25 one step at a time, and Drake's Linearize."""
+
 import numpy as np
 import pytest
 from pydrake.systems.primitives import Linearize

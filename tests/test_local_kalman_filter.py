@@ -1,3 +1,5 @@
+"""The local Kalman filter: Eq. 8-9 one step at a time, the steady state against scipy's DARE."""
+
 import numpy as np
 import pytest
 import scipy.linalg

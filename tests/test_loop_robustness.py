@@ -1,3 +1,5 @@
+"""Loop robustness: each margin checked by closing the loop at its edge; loop gain against scipy."""
+
 import dataclasses
 import math
 

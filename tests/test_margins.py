@@ -1,3 +1,5 @@
+"""Stability margins against closed forms, scipy and the closed-loop poles at each margin's edge."""
+
 import json
 import math
 
@@ -33,8 +35,10 @@ def random_model(seed, n, feedthrough=0.0):
 
 
 def lqg_loop():
-    """A lightly damped lag plus integrator, and the observer-based LQG controller
-    x̂(k+1) = (A - B Kx - Lk C) x̂ + Lk y, u = -Kx x̂, whose output carries its minus sign.
+    """A lightly damped lag plus integrator, and the observer-based LQG controller.
+
+    The controller is x̂(k+1) = (A - B Kx - Lk C) x̂ + Lk y, u = -Kx x̂, whose output carries its
+    minus sign.
     """
     A = np.array([[1.0, TS], [0.0, 0.9]])
     B = np.array([[0.0], [TS]])

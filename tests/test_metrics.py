@@ -1,3 +1,5 @@
+"""Tracking and estimation metrics against closed-form first- and second-order step responses."""
+
 import math
 
 import numpy as np

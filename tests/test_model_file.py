@@ -1,3 +1,5 @@
+"""Model files: units in the file (mm, mA) load into SI, and unknown units are refused."""
+
 import numpy as np
 import pytest
 import yaml

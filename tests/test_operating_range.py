@@ -1,3 +1,5 @@
+"""The operating range: DC gains and time constants against finite differences of the plant."""
+
 import numpy as np
 import pytest
 

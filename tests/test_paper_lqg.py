@@ -1,3 +1,5 @@
+"""The paper's LQG: its gains against scipy's Riccati solutions in the paper's units, its ports."""
+
 import dataclasses
 
 import numpy as np

@@ -1,3 +1,5 @@
+"""The paper's values as printed (Eq. 26, Eq. 30, Sec. III-B) and their SI conversions."""
+
 import numpy as np
 import pytest
 

@@ -1,3 +1,5 @@
+"""maskless analyze: its JSON matches the pure analysis functions; summaries and bad flags."""
+
 import json
 
 import numpy as np

@@ -1,3 +1,5 @@
+"""Pneumatic physics: ISO 6358 flow against its closed form, valve opening, spool, head force."""
+
 import math
 
 import numpy as np

@@ -1,3 +1,5 @@
+"""Prediction-error fits: true poles and gains of simulated records, and MATLAB's saved report."""
+
 import numpy as np
 import pytest
 import scipy.signal

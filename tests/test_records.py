@@ -1,3 +1,5 @@
+"""CSV records, part ranges and detrending, with errors naming the file, the line and the flag."""
+
 import numpy as np
 import pytest
 

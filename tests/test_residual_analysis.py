@@ -1,3 +1,5 @@
+"""Residual correlations of white, AR(1) and input-driven residuals against their known values."""
+
 import numpy as np
 import pytest
 

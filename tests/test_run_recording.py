@@ -1,5 +1,6 @@
-"""A run's logs as recording channels, checked on hand-made logs: every exported port lands in its
-topic under its own name, stamped in whole nanoseconds.
+"""A run's logs as recording channels, checked on hand-made logs.
+
+Every exported port lands in its topic under its own name, stamped in whole nanoseconds.
 """
 
 import numpy as np

@@ -1,3 +1,5 @@
+"""Run summaries: tracking and estimation, the paper's fused-error bound and the clinical bar."""
+
 import pytest
 
 from maskless.diagrams.run_summary import format_summary, summarize

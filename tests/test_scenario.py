@@ -1,3 +1,5 @@
+"""Scenarios: shipped defaults, YAML overrides and tags, shorthands; errors name file and field."""
+
 import numpy as np
 import pytest
 import yaml
@@ -100,8 +102,9 @@ def test_a_third_camera_is_one_yaml_entry_and_is_fused_with_the_others(tmp_path)
 
 
 def write_first_order_model(path):
-    """A first-order model of the head height (m) from the inlet current (A), as `maskless
-    identify` writes one: DC gain 0.1 m/A about 0.2 m and 0.1 A.
+    """A first-order model of the head height (m) from the inlet current (A).
+
+    As `maskless identify` writes one: DC gain 0.1 m/A about 0.2 m and 0.1 A.
     """
     contents = {
         "A": [[0.98]],

@@ -1,3 +1,5 @@
+"""maskless simulate: recording, plot and summary; the streamed recording is the one-shot one."""
+
 import json
 
 import pytest

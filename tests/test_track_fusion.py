@@ -1,3 +1,5 @@
+"""Track-to-track fusion against Eq. 10 written with explicit inverses."""
+
 import numpy as np
 import pytest
 from system_harness import port_layout

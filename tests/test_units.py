@@ -1,3 +1,5 @@
+"""Unit conversions (mm and m, mA and A, mm² and m²) and their inverses."""
+
 import numpy as np
 import pytest
 

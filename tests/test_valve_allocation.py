@@ -1,3 +1,5 @@
+"""Split-range allocations: interpolation as numpy.interp's, inverting the plant's steady lift."""
+
 import numpy as np
 import pytest
 from pydrake.symbolic import Variable

@@ -1,3 +1,5 @@
+"""The valve's static map (dead zone, saturation), alike as a float and as a symbolic expression."""
+
 import pytest
 from pydrake.symbolic import Variable
 

@@ -1,3 +1,5 @@
+"""The workflow end to end: identified gain against the plant's linearisations; the loop tracks."""
+
 import json
 import shlex
 

@@ -1,6 +1,7 @@
-"""Version-1 recordings, written the old way as an independent reference: the schemas, topics and
-field names of every maskless file written before the format carried a version, spelled out here
-rather than taken from maskless.recording.
+"""Version-1 recordings, written the old way as an independent reference.
+
+The schemas, topics and field names of every maskless file written before the format carried a
+version, spelled out here rather than taken from maskless.recording.
 """
 
 import json
@@ -46,8 +47,10 @@ def _schema(name):
 
 
 def write_version1_recording(path, messages):
-    """Writes ``messages``, (topic, log time in ns, payload) in file order, as the version-1 writer
-    did: unchunked, a schema named without a version per kind of message, compact JSON.
+    """Writes ``messages``, (topic, log time in ns, payload) in file order, as version 1 did.
+
+    As the version-1 writer did: unchunked, a schema named without a version per kind of message,
+    compact JSON.
     """
     with open(path, "wb") as stream:
         writer = Writer(

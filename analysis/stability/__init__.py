@@ -1,0 +1,1 @@
+"""Stability of the loops: discrete margins, loop robustness, and their plots."""

@@ -193,8 +193,9 @@ def analyze_paper_loop(
 def steady_lift_at_command_m(
     p: PneumaticParameters, allocation: SplitRangeAllocation, command_m: float
 ) -> float:
-    """The lift (m) at which the plant ``p`` rests with the valve currents the allocation gives
-    for ``command_m``.
+    """The lift (m) at which the plant ``p`` rests under the allocation's currents for a command.
+
+    The currents are those the allocation gives for ``command_m``.
     """
     inlet, outlet = allocation.currents(command_m)
     return float(equilibrium_state(p, float(inlet), float(outlet))[LIFT])
@@ -203,8 +204,10 @@ def steady_lift_at_command_m(
 def holdable_lift_range_m(
     p: PneumaticParameters, allocation: SplitRangeAllocation
 ) -> tuple[float, float]:
-    """(lowest, highest) lift (m) the plant ``p`` rests at over the allocation's command range:
-    the outlet fully open (inlet shut) and the inlet fully open (outlet shut).
+    """(lowest, highest) lift (m) the plant ``p`` rests at over the allocation's command range.
+
+    The lowest is with the outlet fully open (inlet shut), the highest with the inlet fully open
+    (outlet shut).
     """
     low, high = allocation.command_range
     return (
@@ -216,9 +219,10 @@ def holdable_lift_range_m(
 def command_holding_lift_m(
     p: PneumaticParameters, allocation: SplitRangeAllocation, lift_m: float
 ) -> float:
-    """The lift command (m) whose allocated currents hold the plant ``p`` at rest at ``lift_m``:
-    where the offset-free controller's command settles (its disturbance estimate absorbs any
-    difference between the plant and the nominal head the allocation inverts).
+    """The lift command (m) whose allocated currents hold the plant ``p`` at rest at ``lift_m``.
+
+    This is where the offset-free controller's command settles (its disturbance estimate absorbs
+    any difference between the plant and the nominal head the allocation inverts).
 
     Args:
         p: the plant (say, a heavier head than the nominal one).
@@ -267,9 +271,10 @@ def plant_at_lift(
     sample_period_s: float,
     measurement_delay_samples: int,
 ) -> tuple[LinearModel, OperatingPoint]:
-    """The pneumatic plant as the controller sees it with the head at rest at ``lift_m``: Drake's
-    linearisation at the holding command (``pneumatic_design_model``), from the lift command
-    deviation to the head height deviation (m), followed by the measurement's delay.
+    """The pneumatic plant as the controller sees it with the head at rest at ``lift_m``.
+
+    That is Drake's linearisation at the holding command (``pneumatic_design_model``), from the
+    lift command deviation to the head height deviation (m), followed by the measurement's delay.
 
     Args:
         p: the plant's parameters (the head being positioned).

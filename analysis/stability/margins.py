@@ -204,8 +204,10 @@ class Margins:
     delay_margin_s: float
 
     def as_dict(self) -> dict[str, float | str | None]:
-        """The margins as JSON-safe values: finite floats as they are, ±inf as the strings
-        "inf" / "-inf" (meaning "no crossing, unbounded"), nan as None (no such frequency).
+        """The margins as JSON-safe values.
+
+        Finite floats stay as they are, ±inf become the strings "inf" / "-inf" (meaning "no
+        crossing, unbounded"), and nan becomes None (no such frequency).
         """
         return {name: json_safe(value) for name, value in vars(self).items()}
 
@@ -228,8 +230,9 @@ def _band_edge_response(loop: LinearModel, z: float) -> float | None:
 
 
 def _refined_roots(function, omega: np.ndarray, values: np.ndarray, ok: np.ndarray) -> list:
-    """Roots of ``function`` on the grid: exact zeros, and brentq in each interval whose ends
-    change sign and where ``ok`` (per interval) allows it.
+    """Roots of ``function`` on the grid: its exact zeros, and those brentq finds between points.
+
+    brentq runs in each interval whose ends change sign and where ``ok`` (per interval) allows it.
     """
     roots = list(omega[values == 0.0])
     changes = np.flatnonzero((values[:-1] * values[1:] < 0.0) & ok)
@@ -238,6 +241,66 @@ def _refined_roots(function, omega: np.ndarray, values: np.ndarray, ok: np.ndarr
             scipy.optimize.brentq(function, omega[i], omega[i + 1], xtol=1e-12 * omega[-1])
         )
     return roots
+
+
+def _phase_crossings(
+    loop: LinearModel, omega: np.ndarray, phase_values: np.ndarray
+) -> list[tuple[float, float]]:
+    """(frequency (rad/s), |L|) at each -180° phase crossing of L, the z = 1 band edge included.
+
+    ``phase_values`` is angle(-L) on the grid ``omega``. L is real at z = 1, so a negative L there
+    is a crossing at ω = 0; that edge is skipped when L has a pole there.
+    """
+
+    def distance_to_minus_180(w):  # angle(-L) is 0 exactly where ∠L = -180° (mod 360°)
+        return np.angle(-loop.frequency_response(w))
+
+    # angle(-L) also changes sign where it jumps across ±180° (∠L passes 0°); those intervals jump
+    # by about 2π and are excluded.
+    not_a_wrap = np.abs(np.diff(phase_values)) < math.pi
+    phase_crossings = []
+    for w in _refined_roots(distance_to_minus_180, omega, phase_values, not_a_wrap):
+        value = complex(loop.frequency_response(w))
+        # L = 0 (a zero on the unit circle) has no phase; it is no crossing.
+        if abs(value) > 0.0 and abs(np.angle(-value)) < _PHASE_ROOT_TOLERANCE_RAD:
+            phase_crossings.append((float(w), abs(value)))
+    dc = _band_edge_response(loop, 1.0)
+    if dc is not None and dc < 0.0:
+        phase_crossings.append((0.0, -dc))
+    return phase_crossings
+
+
+def _gain_margin(phase_crossings: list[tuple[float, float]]) -> tuple[float, float, float]:
+    """(phase crossover (rad/s), gain margin, gain margin (dB)) from the phase crossings.
+
+    The crossing with the largest |L| sets them; with none, the phase crossover is nan and the
+    gain margin inf.
+    """
+    if not phase_crossings:
+        return math.nan, math.inf, math.inf
+    phase_crossover, crossing_magnitude = max(phase_crossings, key=lambda c: c[1])
+    gain_margin = 1.0 / crossing_magnitude
+    return phase_crossover, gain_margin, 20.0 * math.log10(gain_margin)
+
+
+def _phase_and_delay_margins(loop: LinearModel, gain_roots: list) -> tuple[float, float, float]:
+    """(phase margin (deg), gain crossover (rad/s), delay margin (s)) from the |L| = 1 crossings.
+
+    The crossing with the smallest phase margin sets the first two; with none, the margins are
+    inf and the gain crossover nan.
+    """
+    if not gain_roots:
+        return math.inf, math.nan, math.inf
+    gain_crossings = np.array(gain_roots)
+    # angle(-L) is 180° + ∠L already wrapped to (-180°, 180°].
+    margins_deg = np.degrees(np.angle(-loop.frequency_response(gain_crossings)))
+    best = int(np.argmin(margins_deg))
+    phase_margin_deg = float(margins_deg[best])
+    gain_crossover = float(gain_crossings[best])
+    # A delay τ adds lag ωτ at every crossing; the first crossing it rotates onto -1 sets τ.
+    delays = np.radians(np.mod(margins_deg, 360.0)) / gain_crossings
+    delay_margin_s = float(np.min(delays))
+    return phase_margin_deg, gain_crossover, delay_margin_s
 
 
 def discrete_margins(loop: LinearModel, n_frequencies: int = 4000) -> Margins:
@@ -274,48 +337,15 @@ def discrete_margins(loop: LinearModel, n_frequencies: int = 4000) -> Margins:
         response[-1] = at_nyquist
         phase_values[-1] = 0.0 if at_nyquist < 0.0 else math.pi
 
-    def distance_to_minus_180(w):  # angle(-L) is 0 exactly where ∠L = -180° (mod 360°)
-        return np.angle(-loop.frequency_response(w))
-
     def magnitude_minus_one(w):
         return np.abs(loop.frequency_response(w)) - 1.0
 
-    # angle(-L) also changes sign where it jumps across ±180° (∠L passes 0°); those intervals jump
-    # by about 2π and are excluded.
-    not_a_wrap = np.abs(np.diff(phase_values)) < math.pi
-    phase_crossings = []
-    for w in _refined_roots(distance_to_minus_180, omega, phase_values, not_a_wrap):
-        value = complex(loop.frequency_response(w))
-        # L = 0 (a zero on the unit circle) has no phase; it is no crossing.
-        if abs(value) > 0.0 and abs(np.angle(-value)) < _PHASE_ROOT_TOLERANCE_RAD:
-            phase_crossings.append((float(w), abs(value)))
-    dc = _band_edge_response(loop, 1.0)
-    if dc is not None and dc < 0.0:
-        phase_crossings.append((0.0, -dc))
-
+    phase_crossings = _phase_crossings(loop, omega, phase_values)
     gain_roots = _refined_roots(
         magnitude_minus_one, omega, np.abs(response) - 1.0, np.ones(omega.size - 1, dtype=bool)
     )
-
-    if phase_crossings:
-        phase_crossover, crossing_magnitude = max(phase_crossings, key=lambda c: c[1])
-        gain_margin = 1.0 / crossing_magnitude
-        gain_margin_db = 20.0 * math.log10(gain_margin)
-    else:
-        phase_crossover, gain_margin, gain_margin_db = math.nan, math.inf, math.inf
-
-    if gain_roots:
-        gain_crossings = np.array(gain_roots)
-        # angle(-L) is 180° + ∠L already wrapped to (-180°, 180°].
-        margins_deg = np.degrees(np.angle(-loop.frequency_response(gain_crossings)))
-        best = int(np.argmin(margins_deg))
-        phase_margin_deg = float(margins_deg[best])
-        gain_crossover = float(gain_crossings[best])
-        # A delay τ adds lag ωτ at every crossing; the first crossing it rotates onto -1 sets τ.
-        delays = np.radians(np.mod(margins_deg, 360.0)) / gain_crossings
-        delay_margin_s = float(np.min(delays))
-    else:
-        phase_margin_deg, gain_crossover, delay_margin_s = math.inf, math.nan, math.inf
+    phase_crossover, gain_margin, gain_margin_db = _gain_margin(phase_crossings)
+    phase_margin_deg, gain_crossover, delay_margin_s = _phase_and_delay_margins(loop, gain_roots)
 
     return Margins(
         gain_margin=float(gain_margin),

@@ -21,8 +21,9 @@ def _figure(size):
 
 
 def plot_operating_range(path: str | Path, ranges: dict[str, OperatingRange]) -> Path:
-    """Steady lift, gauge pressure, DC gain and slow time constant against each valve's current,
-    2x2 panels. Returns the written path.
+    """Steady lift, gauge pressure, DC gain and slow time constant against each valve's current.
+
+    Draws 2x2 panels. Returns the written path.
 
     Args:
         path: the PNG to write.
@@ -80,8 +81,10 @@ def _bode(loop):
 
 
 def plot_paper_loop(path: str | Path, paper: PaperLoopAnalysis) -> Path:
-    """The paper's loop: its poles on the unit circle, a zoom on the plant's poles (open loop
-    against regulator), and the loop gain |L| against frequency. Returns the written path.
+    """The paper's loop: its poles, a zoom on the plant's poles, and the loop gain |L|.
+
+    The poles are drawn on the unit circle, the zoom shows the plant's poles open loop against
+    regulator, and |L| is drawn against frequency. Returns the written path.
 
     Args:
         path: the PNG to write.
@@ -157,9 +160,10 @@ def _nominal(cases: list[RobustnessCase]) -> list[RobustnessCase]:
 
 
 def plot_offset_free_loops(path: str | Path, cases: list[RobustnessCase]) -> Path:
-    """The offset-free loop at each lift (head mass factor 1, no extra latency): closed-loop
-    poles (all, and near z = 1), and the loop's Bode magnitude and phase with the gain and phase
-    crossings marked. Returns the written path.
+    """The offset-free loop at each lift (head mass factor 1, no extra latency): poles and Bode.
+
+    Draws the closed-loop poles (all, and near z = 1), and the loop's Bode magnitude and phase
+    with the gain and phase crossings marked. Returns the written path.
 
     Args:
         path: the PNG to write.
@@ -227,9 +231,10 @@ def plot_offset_free_loops(path: str | Path, cases: list[RobustnessCase]) -> Pat
 def plot_robustness(
     path: str | Path, cases: list[RobustnessCase], latency_requirement_s: float
 ) -> Path:
-    """Gain, phase and delay margins against lift, one line per head mass (no extra latency,
-    solid) and per extra latency (nominal mass, dashed); unstable cases are crossed out in red.
-    Returns the written path.
+    """Gain, phase and delay margins against lift, per head mass and per extra latency.
+
+    One line per head mass (no extra latency, solid) and per extra latency (nominal mass,
+    dashed); unstable cases are crossed out in red. Returns the written path.
 
     Args:
         path: the PNG to write.

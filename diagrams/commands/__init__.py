@@ -1,0 +1,1 @@
+"""The CLI's commands: flags -> a typed request -> one library call -> text."""

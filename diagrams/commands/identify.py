@@ -1,5 +1,6 @@
-"""Identify models from a recorded experiment: MATLAB's figures, the baselines a model must beat,
-and a verdict on whether the input explains the output.
+"""Identify models from a recorded experiment, with MATLAB's figures, baselines and a verdict.
+
+The baselines are those a model must beat; the verdict says whether the input explains the output.
 
 Reads the input (valve current) and output (head distance or height) from CSV files (one value per
 line, or a column) or from a maskless MCAP recording (TOPIC:FIELD), detrends them, fits each order

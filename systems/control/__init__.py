@@ -1,0 +1,1 @@
+"""The controllers and their inputs: both LQGs, the valve allocation, excitation sources."""

@@ -65,6 +65,7 @@ class ExcitationSignal:
     kind: str
 
     def __post_init__(self):
+        """Checks the samples (ValueError) and stores them as read-only float arrays."""
         _require_positive_finite("sample_period_s", self.sample_period_s)
         times_s = np.array(self.times_s, dtype=float)
         values = np.array(self.values, dtype=float)
@@ -339,8 +340,9 @@ def _signal(values, sample_period_s, kind):
 
 
 def sample_count(duration_s, sample_period_s) -> int:
-    """The samples N = floor(duration_s / sample_period_s) a design of that length has, with the
-    ratio's rounding error forgiven (0.3 s / 0.1 s gives 3, not 2).
+    """The samples N = floor(duration_s / sample_period_s) a design of that length has.
+
+    The ratio's rounding error is forgiven (0.3 s / 0.1 s gives 3, not 2).
     """
     return math.floor(duration_s / sample_period_s * (1.0 + _SAMPLE_COUNT_RTOL))
 

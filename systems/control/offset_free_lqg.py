@@ -103,8 +103,9 @@ class OffsetFreeLqgDesign:
     command_per_reference: float
 
     def estimator_state_at(self, output_deviation_m: float) -> np.ndarray:
-        """The augmented state [x, d, delayed heights] at rest at ``output_deviation_m``, with
-        no disturbance.
+        """The augmented state [x, d, delayed heights] at rest at ``output_deviation_m``.
+
+        The disturbance estimate d is zero.
         """
         return np.concatenate(
             [
@@ -116,7 +117,9 @@ class OffsetFreeLqgDesign:
 
 
 def augment_for_estimation(model: LinearModel, measurement_delay_samples: int = 0):
-    """(A_a, B_a, C_a) of x+ = A x + B (u + d), d+ = d, z1+ = C x, z(i+1)+ = z(i), and the
+    """(A_a, B_a, C_a) of the model augmented with an input disturbance and the measurement delay.
+
+    The augmented model is x+ = A x + B (u + d), d+ = d, z1+ = C x, z(i+1)+ = z(i), and the
     measurement y = z(delay) (y = C x with no delay).
     """
     if measurement_delay_samples < 0:
@@ -141,8 +144,9 @@ def augment_for_estimation(model: LinearModel, measurement_delay_samples: int = 
 def design_offset_free_lqg(
     model: LinearModel, weights: OffsetFreeLqgWeights, measurement_delay_samples: int = 0
 ) -> OffsetFreeLqgDesign:
-    """LQR and steady Kalman gains for ``model`` with an input-disturbance estimate, for a
-    measurement ``measurement_delay_samples`` ticks old.
+    """LQR and steady Kalman gains for ``model`` with an input-disturbance estimate.
+
+    The measurement is ``measurement_delay_samples`` ticks old.
 
     Args:
         model: the plant's model, its output the head height (m); D = 0.
@@ -200,8 +204,10 @@ def design_offset_free_lqg(
 
 
 def _output_scaled_identity(N_x: np.ndarray) -> np.ndarray:
-    """A diagonal that weighs each state as much as the output it would produce in steady state
-    (N_x per unit output), so one number weighs states of any units (Pa, m, A) evenly.
+    """A diagonal that weighs each state as much as the output it would produce in steady state.
+
+    In steady state the states are N_x per unit output, so one number weighs states of any units
+    (Pa, m, A) evenly.
     """
     scale = np.where(np.abs(N_x) > 1e-12, 1.0 / np.maximum(np.abs(N_x), 1e-12), 1.0)
     return np.diag(scale**2)
@@ -218,8 +224,9 @@ def closed_loop_poles(design: OffsetFreeLqgDesign) -> dict[str, np.ndarray]:
 
 
 def controller_state_space(design: OffsetFreeLqgDesign) -> LinearModel:
-    """The unsaturated controller from the measured height deviation y to the command deviation u
-    at a constant reference (Δr = 0), with the predicted estimate as state: z̄ = z + M (y - C_a z),
+    """The unsaturated controller from the measured height deviation y to the command deviation u.
+
+    At a constant reference (Δr = 0), with the predicted estimate as state: z̄ = z + M (y - C_a z),
     u = -F z̄, z+ = A_a z̄ + B_a u, where F = [K, 1, 0...] (the disturbance estimate is subtracted
     from the command). The sign is the controller's own (u = C_c z + D_c y), as
     ``analysis.stability.margins`` expects.

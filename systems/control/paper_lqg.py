@@ -91,9 +91,11 @@ def closed_loop_poles(model: LinearModel, design: LqgDesign) -> dict[str, np.nda
 
 
 def controller_state_space(model: LinearModel, design: LqgDesign) -> LinearModel:
-    """The paper's LQG controller at a constant reference, from the output deviation y to the
-    current deviation u: the predictor x̂+ = A x̂ + B u + L (y - C x̂) (Eq. 34) with u = -K x̂, that
-    is x̂+ = (A - B K - L C) x̂ + L y, u = -K x̂ (no feedthrough: the command depends on the
+    """The paper's LQG controller at a constant reference, from output to current deviation.
+
+    From the output deviation y to the current deviation u: the predictor
+    x̂+ = A x̂ + B u + L (y - C x̂) (Eq. 34) with u = -K x̂, that is
+    x̂+ = (A - B K - L C) x̂ + L y, u = -K x̂ (no feedthrough: the command depends on the
     estimate only, as in ``add_paper_lqg``). The sign is the controller's own, as
     ``analysis.stability.margins`` expects.
 

@@ -36,6 +36,7 @@ class SplitRangeAllocation:
     outlet_currents_a: np.ndarray
 
     def __post_init__(self):
+        """Raises ValueError unless the knots increase, with a finite current per valve at each."""
         knots = np.asarray(self.command_knots, dtype=float)
         if knots.ndim != 1 or knots.size < 2 or not np.all(np.diff(knots) > 0):
             raise ValueError(f"command_knots = {knots}: expected >= 2 increasing lifts")
@@ -58,8 +59,9 @@ class SplitRangeAllocation:
 
 
 def _piecewise_linear(x, knots, values):
-    """Linear interpolation through (knots, values), constant beyond the ends, as a sum of clamped
-    ramps: min and max only, so it also builds a symbolic expression.
+    """Linear interpolation through (knots, values), constant beyond the ends.
+
+    Written as a sum of clamped ramps: min and max only, so it also builds a symbolic expression.
     """
     result = float(values[0])
     for k in range(len(knots) - 1):
@@ -83,7 +85,9 @@ def allocation_from_steady_lift(
     Args:
         inlet_currents_a: increasing inlet currents, from the valve's starting current up.
         steady_lifts_m: the lift the plant settles at for each (increasing with current).
-        outlet_starting_current_a, outlet_saturation_current_a: the outlet valve's current span.
+        outlet_starting_current_a: the outlet valve's starting current, where its span begins (A).
+        outlet_saturation_current_a: the outlet valve's saturation current, where its span
+            ends (A).
         outlet_full_open_below_m: how far below the lowest steady lift the command must go for
             the outlet to open fully; transients only, since nothing holds a lift there.
         num_knots: knots spread evenly in lift over the inlet's curve.
@@ -111,10 +115,12 @@ def _split_range(
     outlet_starting_current_a: float,
     outlet_saturation_current_a: float,
 ) -> SplitRangeAllocation:
-    """The allocation both designs share: the inlet serves ``inlet_commands`` (from its starting
-    current up); below the first of them the outlet ramps from its starting current to fully
-    open at ``outlet_fully_open_command``. At the first inlet command the currents jump both
-    valves' dead bands (a knot a hair above keeps the map a function).
+    """The allocation both designs share: the inlet above its first command, the outlet below.
+
+    The inlet serves ``inlet_commands`` (from its starting current up); below the first of them
+    the outlet ramps from its starting current to fully open at ``outlet_fully_open_command``. At
+    the first inlet command the currents jump both valves' dead bands (a knot a hair above keeps
+    the map a function).
     """
     epsilon = 1e-6 * (inlet_commands[-1] - inlet_commands[0])
     tail = len(inlet_commands) - 1
@@ -141,7 +147,8 @@ def current_split_allocation(inlet, outlet) -> SplitRangeAllocation:
     is the inverse of their static map.
 
     Args:
-        inlet, outlet: the valves (``pneumatic_physics.ValveParameters``).
+        inlet: the inlet valve (``pneumatic_physics.ValveParameters``).
+        outlet: the outlet valve (``pneumatic_physics.ValveParameters``).
     """
     inlet_range = np.array([inlet.starting_current_a, inlet.saturation_current_a])
     return _split_range(

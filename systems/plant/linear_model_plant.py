@@ -88,8 +88,9 @@ def add_linear_model_plant(
 
 
 def operating_head_height_m(model: LinearModel, camera_height_m: float | None) -> float:
-    """Head height above the table at the model's operating point (m); ``camera_height_m`` as
-    in ``add_linear_model_plant``.
+    """Head height above the table at the model's operating point (m).
+
+    ``camera_height_m`` is as in ``add_linear_model_plant``.
     """
     if camera_height_m is None:
         return model.operating_output

@@ -76,8 +76,9 @@ def linearize_pneumatic_plant(
     outlet_current_a: float = 0.0,
     valve: str = "inlet",
 ):
-    """Continuous (A, B, C) of the plant at rest with the spools at the given coil currents, with
-    input the coil current of ``valve`` and output the head height, on the states
+    """Continuous (A, B, C) of the plant at rest with the spools at the given coil currents.
+
+    The input is the coil current of ``valve`` and the output the head height, on the states
     ``VALVE_STATES[valve]``.
 
     The driven valve's spool is linearised about to open further (its coil a play band's half
@@ -140,8 +141,9 @@ class AllocationPoint:
 
 
 def allocation_point(allocation: SplitRangeAllocation, command: float) -> AllocationPoint:
-    """The currents at ``command`` and the slope of the segment it lies on (the one below, at a
-    knot).
+    """The currents at ``command`` and the slope of the segment it lies on.
+
+    At a knot, the segment is the one below.
     """
     knots = allocation.command_knots
     segment = int(np.clip(np.searchsorted(knots, command) - 1, 0, len(knots) - 2))
@@ -165,9 +167,10 @@ def pneumatic_design_model(
     operating_lift_m: float,
     sample_period_s: float,
 ) -> LinearModel:
-    """The plant linearised at ``operating_lift_m`` and discretised, with the lift command as
-    input: the moving valve's current column (the inlet's over its range, the outlet's below it)
-    scaled by the allocation's current per metre there.
+    """The plant linearised at ``operating_lift_m`` and discretised, with the lift command as input.
+
+    The input column is the moving valve's current column (the inlet's over its range, the
+    outlet's below it) scaled by the allocation's current per metre there.
 
     Args:
         p: the plant's parameters (the nominal head, whose steady lift the allocation inverts).

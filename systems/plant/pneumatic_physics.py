@@ -59,10 +59,12 @@ class ValveParameters:
 
     @property
     def current_span_a(self) -> float:
+        """The coil currents over which the valve opens: saturation minus starting current (A)."""
         return self.saturation_current_a - self.starting_current_a
 
     @property
     def play_half_width_a(self) -> float:
+        """Half the width of the spool's play band (A): half the hysteresis fraction of the span."""
         return 0.5 * self.hysteresis_fraction * self.current_span_a
 
 
@@ -127,16 +129,18 @@ class PneumaticParameters:
 
     @property
     def unloaded_lift_m(self) -> float:
-        """Where the bladder fabric carries no load: the nominal head rests at zero lift with the
-        bladder at zero gauge.
+        """Where the bladder fabric carries no load.
+
+        There the nominal head rests at zero lift with the bladder at zero gauge.
         """
         return self.nominal_head_mass_kg * self.gravity_m_s2 / self.stiffness_n_m
 
 
 def subsonic_flow_factor(pressure_ratio, critical_ratio, laminar_ratio):
-    """ISO 6358 flow factor phi(r) for r = p_down / p_up in [0, 1]: 1 when choked (r <= b), the
-    elliptic law above b, and the standard's linear segment from ``laminar_ratio`` to zero at r = 1
-    (which keeps the derivative finite at zero flow).
+    """ISO 6358 flow factor phi(r) for r = p_down / p_up in [0, 1].
+
+    It is 1 when choked (r <= b), the elliptic law above b, and the standard's linear segment from
+    ``laminar_ratio`` to zero at r = 1 (which keeps the derivative finite at zero flow).
 
     The elliptic law is concave, so below ``laminar_ratio`` it lies under the extension of the
     linear segment and above it lies over the segment: the minimum of the two is the piecewise law,
@@ -152,8 +156,9 @@ def subsonic_flow_factor(pressure_ratio, critical_ratio, laminar_ratio):
 
 
 def mass_flow_kg_s(conductance, critical_ratio, p_up, p_down, parameters: PneumaticParameters):
-    """ISO 6358 mass flow from absolute pressure ``p_up`` to ``p_down`` (zero if p_down is higher);
-    for a valve, whose upstream side is fixed by the circuit (the supply always exceeds the
+    """ISO 6358 mass flow from absolute pressure ``p_up`` to ``p_down`` (zero if p_down is higher).
+
+    For a valve, whose upstream side is fixed by the circuit (the supply always exceeds the
     bladder, the vacuum is always below it).
     """
     scale = (
@@ -170,8 +175,9 @@ def mass_flow_kg_s(conductance, critical_ratio, p_up, p_down, parameters: Pneuma
 
 
 def two_way_mass_flow_kg_s(conductance, critical_ratio, p_1, p_2, parameters: PneumaticParameters):
-    """ISO 6358 mass flow from ``p_1`` to ``p_2``, negative when p_2 > p_1 (the leak, which
-    breathes in when the outlet pulls the bladder below atmosphere).
+    """ISO 6358 mass flow from ``p_1`` to ``p_2``, negative when p_2 > p_1.
+
+    For the leak, which breathes in when the outlet pulls the bladder below atmosphere.
 
     Written as the difference of the two directions, each of which is zero when its own upstream
     side is the lower pressure, so no sign function is needed.

@@ -10,8 +10,9 @@ from pydrake.symbolic import min as symbolic_min
 
 
 def effective_valve_current(current, starting_current, saturation_current):
-    """The current that reaches the linear dynamics: 0 below ``starting_current``, clipped above
-    ``saturation_current``, unchanged in between (A).
+    """The current that reaches the linear dynamics (A).
+
+    It is 0 below ``starting_current``, clipped above ``saturation_current``, unchanged in between.
 
     Works on floats and on ``pydrake.symbolic`` expressions, so the same map runs inside a
     SymbolicVectorSystem and in analysis code.

@@ -1,6 +1,8 @@
-"""Measurement models of the two depth cameras: ``kinect_v1`` (structured light) and ``kinect_v2``
-(time of flight). Both share one port contract: the true head height above the table in (m); the
-camera-to-face distance (m) and a validity flag out, one frame per frame period.
+"""Measurement models of the two depth cameras, ``kinect_v1`` and ``kinect_v2``.
+
+``kinect_v1`` is structured light, ``kinect_v2`` time of flight. Both share one port contract: the
+true head height above the table in (m); the camera-to-face distance (m) and a validity flag out,
+one frame per frame period.
 
 Each frame: the head height from ``latency`` ago becomes a distance below the camera; published
 axial noise is added (Kinect v1: Nguyen, Izadi, Lovell 2012; Kinect v2: Fankhauser et al. 2015, plus
@@ -118,10 +120,12 @@ def kinect_v1_quantised_distance_m(distance_m):
 
 
 def sqrt_any(value):
+    """The square root of a float, or of a ``pydrake.symbolic`` expression or variable."""
     return sqrt(value) if isinstance(value, Expression | Variable) else math.sqrt(value)
 
 
 def floor_any(value):
+    """The floor of a float, or of a ``pydrake.symbolic`` expression or variable."""
     return floor(value) if isinstance(value, Expression | Variable) else math.floor(value)
 
 
@@ -132,37 +136,51 @@ def latency_frames(config: DepthSensorConfig) -> int:
 
 def validate_sensor_config(name: str, config: DepthSensorConfig) -> None:
     """Raises ConfigError naming the field when a sensor's parameters are out of range."""
+    for in_range, field_name, expected in _range_checks(config):
+        if not in_range:
+            value = getattr(config, field_name)
+            raise ConfigError(f"{name}.{field_name} = {value}: expected {expected}")
 
-    def fail(field_name, expected):
-        value = getattr(config, field_name)
-        raise ConfigError(f"{name}.{field_name} = {value}: expected {expected}")
 
-    if not config.frame_rate_hz > 0:
-        fail("frame_rate_hz", "a positive rate")
-    if not config.latency_s >= 0.5 / config.frame_rate_hz:
-        fail(
-            "latency_s",
-            f"at least half a frame period, {0.5 / config.frame_rate_hz:.4f} s (it is rounded "
-            "to whole frames, at least one)",
-        )
-    if not 0.0 <= config.dropout_probability < 1.0:
-        fail("dropout_probability", "a probability in [0, 1)")
-    if not 0.0 <= config.incidence_angle_rad < math.pi / 2:
-        fail("incidence_angle_rad", "an angle in [0, pi/2)")
-    if not 0.0 < config.min_range_m < config.max_range_m:
-        fail("min_range_m", "0 < min_range_m < max_range_m")
-    if not config.mount_height_m > 0:
-        fail("mount_height_m", "a positive height")
+def _range_checks(config: DepthSensorConfig):
+    """(in range, field, what was expected) for each of a sensor's parameters, in checking order.
+
+    A generator: each check is evaluated only once those before it have passed, so the latency's
+    bound is computed from a frame rate already known to be positive.
+    """
+    yield config.frame_rate_hz > 0, "frame_rate_hz", "a positive rate"
+    half_frame_s = 0.5 / config.frame_rate_hz
+    yield (
+        config.latency_s >= half_frame_s,
+        "latency_s",
+        f"at least half a frame period, {half_frame_s:.4f} s (it is rounded "
+        "to whole frames, at least one)",
+    )
+    yield 0.0 <= config.dropout_probability < 1.0, "dropout_probability", "a probability in [0, 1)"
+    yield (
+        0.0 <= config.incidence_angle_rad < math.pi / 2,
+        "incidence_angle_rad",
+        "an angle in [0, pi/2)",
+    )
+    yield (
+        0.0 < config.min_range_m < config.max_range_m,
+        "min_range_m",
+        "0 < min_range_m < max_range_m",
+    )
+    yield config.mount_height_m > 0, "mount_height_m", "a positive height"
     if isinstance(config, KinectV2Config):
-        if not config.warmup_time_constant_s > 0:
-            fail("warmup_time_constant_s", "a positive time constant")
-        if not config.resolution_m > 0:
-            fail("resolution_m", "a positive step")
+        yield (
+            config.warmup_time_constant_s > 0,
+            "warmup_time_constant_s",
+            "a positive time constant",
+        )
+        yield config.resolution_m > 0, "resolution_m", "a positive step"
 
 
 def add_depth_sensor(builder: DiagramBuilder, name: str, config: DepthSensorConfig) -> PortMap:
-    """Adds a camera model to ``builder``: ``kinect_v1`` for a KinectV1Config, ``kinect_v2`` for
-    a KinectV2Config.
+    """Adds a camera model to ``builder``, ``kinect_v1`` or ``kinect_v2`` as ``config`` says.
+
+    ``kinect_v1`` for a KinectV1Config, ``kinect_v2`` for a KinectV2Config.
 
     .. pydrake_system::
 

@@ -79,8 +79,10 @@ def update(x, P, z, measurement_variance):
 
 
 def steady_state_covariances(dt, acceleration_variance, measurement_variance):
-    """The filter's steady-state prior and posterior covariances, from Drake's discrete algebraic
-    Riccati equation (the dual of the LQR equation: A -> Fᵀ, B -> Hᵀ).
+    """The filter's steady-state prior and posterior covariances, from Drake's DARE.
+
+    Drake's discrete algebraic Riccati equation is solved as the dual of the LQR equation:
+    A -> Fᵀ, B -> Hᵀ.
 
     Returns:
         (P(k|k-1), P(k|k)) as 2x2 arrays.

@@ -400,8 +400,7 @@ def _validate_cameras(config: Scenario) -> None:
 
 
 def _validate_choices(config: Scenario) -> None:
-    """Refuses a choice that is no variant, a model file that does not exist and a camera the
-    paper's model cannot use."""
+    """Refuses a choice that is no variant, a missing model file, or a camera that is not there."""
     for field_name, choice, variants in (
         ("plant", config.plant, Plant),
         ("controller", config.controller, Controller),

@@ -191,5 +191,6 @@ def test_an_override_that_breaks_the_scenario_names_the_override():
 
 
 def test_a_choice_set_as_a_string_is_refused_naming_the_variants():
-    with pytest.raises(ConfigError, match="controller = 'paper-lqg': expected one of OffsetFreeLqg"):
+    expected = "controller = 'paper-lqg': expected one of OffsetFreeLqg"
+    with pytest.raises(ConfigError, match=expected):
         load_scenario(controller="paper-lqg")

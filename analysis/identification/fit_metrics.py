@@ -49,7 +49,8 @@ def fit_percent(y: np.ndarray, y_hat: np.ndarray) -> float:
 
 def evaluate_fit(y: np.ndarray, y_hat: np.ndarray, parameters: int) -> FitMetrics:
     """All figures for the prediction ``y_hat`` of ``y`` by a model with ``parameters`` estimated
-    parameters."""
+    parameters.
+    """
     y, y_hat = np.asarray(y, float), np.asarray(y_hat, float)
     if y.shape != y_hat.shape or y.ndim != 1 or y.size == 0:
         raise ValueError(

@@ -80,7 +80,8 @@ class InnovationsModel:
 
     def predict(self, u: np.ndarray, y: np.ndarray, initial_state=None) -> np.ndarray:
         """One-step-ahead prediction ŷ(k | k-1) from x(0) = ``initial_state`` (default: the
-        model's own)."""
+        model's own).
+        """
         x0 = self.initial_state if initial_state is None else np.asarray(initial_state, float)
         denominator = np.concatenate([[1.0], self.c])
         from_u = np.concatenate([[0.0], self.b])

@@ -35,7 +35,8 @@ def model_file_contents(
     verdict: str,
 ) -> dict:
     """The YAML mapping of one fitted model, with the record's offsets and units (the model is
-    of the detrended record's deviations, in the record's units; the variance in output_unit²)."""
+    of the detrended record's deviations, in the record's units; the variance in output_unit²).
+    """
     model = fitted.model
     contents = {
         "method": fitted.method,

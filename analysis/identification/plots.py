@@ -21,7 +21,8 @@ def plot_compare(
     path: str | Path, fitted: FittedModel, parts: list[Part], sample_period_s: float, unit: str
 ) -> Path:
     """Measured output against the one-step prediction and the simulation, on each part, with the
-    same initial states as the report's figures."""
+    same initial states as the report's figures.
+    """
     model = fitted.polynomials
     figure = _figure(11, 3.2 * len(parts))
     axes = figure.subplots(len(parts), 1, squeeze=False)[:, 0]
@@ -51,7 +52,8 @@ def plot_compare(
 
 def plot_residuals(path: str | Path, fitted: FittedModel, parts: list[Part]) -> Path:
     """For each part, the one-step residuals' autocorrelation and their cross-correlation with
-    the input, each with its 99 % band."""
+    the input, each with its 99 % band.
+    """
     model = fitted.polynomials
     figure = _figure(12, 3.0 * len(parts))
     grid = figure.subplots(len(parts), 2, squeeze=False)

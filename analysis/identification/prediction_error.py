@@ -102,7 +102,8 @@ def estimate_noise_model(
     progress: Callable[[int, float], None] | None = None,
 ) -> InnovationsModel:
     """``model`` with its innovations gain K (and x(0) when asked) fitted by prediction error and
-    its dynamics A, B held: how a subspace fit gets its noise model."""
+    its dynamics A, B held: how a subspace fit gets its noise model.
+    """
     _check_record(u, y, model.order)
     free = ["k", "initial_state"] if estimate_initial_state else ["k"]
     start = replace(
@@ -146,7 +147,8 @@ def _minimise_prediction_error(u, y, start: InnovationsModel, free: list[str], p
 
 def estimate_ar(y: np.ndarray, order: int, sample_period_s: float) -> InnovationsModel:
     """AR(n) by least squares, y(k) + a1 y(k-1) + ... = e(k): ARX without its input, the baseline
-    an ARX model must beat."""
+    an ARX model must beat.
+    """
     return replace(estimate_arx(np.zeros_like(y), y, order, sample_period_s), b=np.zeros(order))
 
 
@@ -154,7 +156,8 @@ def parameter_count(
     order: int, *, with_input: bool, with_noise_model: bool, estimated_initial_state: bool
 ) -> int:
     """d: the free parameters of a fit, n each for a, b (with input), k (with a noise model; ARX
-    has none) and x(0) (when estimated)."""
+    has none) and x(0) (when estimated).
+    """
     return order * (1 + with_input + with_noise_model + estimated_initial_state)
 
 

@@ -157,7 +157,8 @@ class Detrended:
 
 def detrend(u: np.ndarray, y: np.ndarray, mode: str) -> Detrended:
     """Removes the whole record's mean ("mean", the authors' preprocessing), its least-squares line
-    ("linear") or nothing ("none")."""
+    ("linear") or nothing ("none").
+    """
     if mode == "none":
         return Detrended(u, y, 0.0, 0.0)
     if mode == "mean":

@@ -82,7 +82,8 @@ def _fitted_model(
     details: dict | None = None,
 ) -> FittedModel:
     """``polynomials`` fitted on ``estimation`` as a FittedModel, its model carrying the variance
-    of the one-step innovations there."""
+    of the one-step innovations there.
+    """
     # Every estimator leaves x(0) at zero when it does not estimate it, so the model's own x(0) is
     # the one the estimation part's one-step figures use.
     innovations = estimation.y - polynomials.predict(estimation.u, estimation.y)
@@ -106,7 +107,8 @@ def fit(
 ) -> FittedModel:
     """Fits one model: "pem" (innovations-form state space) and "armax" (the same model set,
     ARMAX(n, n, n)) by prediction error, "arx" by least squares (zero initial state), "n4sid" by
-    subspace identification (PO-MOESP)."""
+    subspace identification (PO-MOESP).
+    """
     count = parameter_count(
         order,
         with_input=True,
@@ -160,7 +162,8 @@ def part_figures(
 ) -> dict:
     """fit_percent_1step, fit_percent_sim, mse, fpe, naic, aic, bic and n of one part, and
     fit_percent_{k}step when ``k_step`` is given; the error figures are those of the one-step
-    prediction. Also the residuals' whiteness (share of lags outside the 99 % bands)."""
+    prediction. Also the residuals' whiteness (share of lags outside the 99 % bands).
+    """
     model = fitted.polynomials
     x0 = initial_state_for_part(fitted, part, estimation, "one_step")
     one_step = model.predict(part.u, part.y, x0)
@@ -189,7 +192,8 @@ def part_figures(
 
 def baseline_figures(fitted: FittedModel, parts: list[Part], progress=None) -> dict:
     """The same structure without input (one-step fit) and the initial state's free response
-    (simulation fit), per part."""
+    (simulation fit), per part.
+    """
     estimation = parts[0]
     model = fitted.polynomials
     if fitted.method == "arx":

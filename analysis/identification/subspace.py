@@ -27,7 +27,7 @@ def default_horizon(order: int) -> int:
 
 
 def _block_hankel(signal: np.ndarray, rows: int, columns: int) -> np.ndarray:
-    """rows x columns Hankel matrix, entry (r, c) = signal[r + c] (a view, no copy)."""
+    """Rows x columns Hankel matrix, entry (r, c) = signal[r + c] (a view, no copy)."""
     windows = np.lib.stride_tricks.sliding_window_view(signal, columns)
     return windows[:rows]
 

@@ -1,1 +1,1 @@
-"""Identification: estimators (PEM, ARX, N4SID), MATLAB's fit figures, residual tests, model files."""
+"""Identification: PEM, ARX and N4SID estimators, MATLAB's fit figures, model files."""

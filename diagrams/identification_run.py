@@ -7,6 +7,7 @@ The figures and the verdict come from ``analysis.identification.report``; this m
 record, chooses its parts and writes the results.
 """
 
+import dataclasses
 import json
 import math
 import sys
@@ -31,6 +32,7 @@ from maskless.analysis.identification.subspace import default_horizon
 from maskless.diagrams.background import BackgroundTask
 from maskless.errors import RecordError
 from maskless.recording import COMMAND_TOPIC, FUSION_TOPIC
+from maskless.systems.linear_model import LinearModel
 
 # What a maskless recording's input and output are, unless the request says otherwise.
 DEFAULT_MCAP_INPUT = f"{COMMAND_TOPIC}:inlet_valve_current_a"
@@ -142,9 +144,19 @@ class IdentificationRun:
     units: tuple[str, str]
 
     @property
-    def model(self):
-        """The fitted model of the first (or only) order asked for."""
-        return self.fitted_models[0].model
+    def model(self) -> LinearModel:
+        """The fitted model of the first (or only) order asked for, about the record's offsets.
+
+        Its operating point is what detrending removed, in the record's units, as a model file
+        written by `maskless identify` loads.
+        """
+        return dataclasses.replace(
+            self.fitted_models[0].model,
+            operating_input=self.offsets.input_offset,
+            operating_output=self.offsets.output_offset,
+            input_unit=self.units[0],
+            output_unit=self.units[1],
+        )
 
 
 def _field_unit(topic_and_field: str) -> str:
@@ -255,7 +267,7 @@ def identify(
         )
     if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
         raise RecordError("u and y: expected finite numbers only")
-    return identify_signals(u, y, request, ("unknown", "unknown"))
+    return identify_signals(u, y, request, ("", ""))
 
 
 def identify_signals(

@@ -320,3 +320,29 @@ def test_bad_flags_are_refused_naming_the_flag(tmp_path, capsys, extra, message)
     u_path, y_path = write_record(tmp_path, u, y)
     assert main(["identify", "--input", u_path, "--output", y_path, *extra]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_identify_on_arrays_returns_the_model_about_the_records_operating_point():
+    # A known first-order system, y - 0.2 = 0.9 (y - 0.2)[-1] + 0.01 (u - 0.1)[-1] + noise: its
+    # DC gain is 0.01 / 0.1 = 0.1 (m per A), about u = 0.1 A, y = 0.2 m.
+    rng = np.random.default_rng(0)
+    u = 0.1 + 0.02 * np.sign(rng.standard_normal(4000))
+    y = np.full(u.size, 0.2)
+    for k in range(1, u.size):
+        y[k] = 0.2 + 0.9 * (y[k - 1] - 0.2) + 0.01 * (u[k - 1] - 0.1)
+    y += 1e-6 * rng.standard_normal(u.size)
+    identified = maskless.identify(u, y, sample_period_s=0.1, order=1, input_unit="A", output_unit="m")
+    model = identified.model
+    assert model.dc_gain() == pytest.approx(0.1, rel=1e-3)
+    assert model.operating_input == pytest.approx(np.mean(u)) and model.input_unit == "A"
+    assert model.operating_output == pytest.approx(np.mean(y)) and model.output_unit == "m"
+    assert identified.report["verdict"].startswith("The input explains the output")
+    design = maskless.design_controller(model)
+    assert design.command_per_reference == pytest.approx(1 / model.dc_gain())
+
+
+def test_identify_on_arrays_refuses_mismatched_or_non_finite_signals():
+    with pytest.raises(maskless.RecordError, match="shapes"):
+        maskless.identify(np.zeros(10), np.zeros(9), sample_period_s=0.1)
+    with pytest.raises(maskless.RecordError, match="finite"):
+        maskless.identify(np.array([0.0, np.nan]), np.zeros(2), sample_period_s=0.1)

@@ -5,13 +5,17 @@ kinect_v2 -> local Kalman filters -> track-to-track fusion -> fused height -> co
 
 The plant is the pneumatic "real robot", the paper's identified model or a model file; the
 controller is the offset-free LQG or the paper's LQG (which drives the inlet only).
+
+A sweep over pneumatic plants (a Monte Carlo over patients' heads) builds one loop and writes each
+draw's constants into its Context (``set_plant_parameters``) instead of building a loop per draw.
 """
 
 import dataclasses
+from collections.abc import Collection
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydrake.systems.framework import Diagram, DiagramBuilder, InputPort, OutputPort
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, InputPort, OutputPort
 from pydrake.systems.primitives import (
     ConstantVectorSource,
     Multiplexer,
@@ -40,13 +44,20 @@ from maskless.systems.paper_parameters import (
 from maskless.systems.paper_plant import add_paper_plant, operating_head_height_m
 from maskless.systems.pneumatic_design import pneumatic_allocation, pneumatic_design_model
 from maskless.systems.pneumatic_physics import LIFT, PneumaticParameters
-from maskless.systems.pneumatic_plant import add_pneumatic_plant, equilibrium_state
+from maskless.systems.pneumatic_plant import (
+    SWEPT_PARAMETERS,
+    add_pneumatic_plant,
+    equilibrium_state,
+    set_pneumatic_parameters,
+)
 from maskless.systems.track_fusion import add_track_fusion
 from maskless.systems.units import ma_to_a
 from maskless.systems.valve_allocation import SplitRangeAllocation, current_split_allocation
 
 # Far beyond any run, so the last reference value holds for the rest of the simulation.
 _REFERENCE_HOLD_S = 1.0e9
+
+PNEUMATIC_PLANT_NAME = "pneumatic_plant"
 
 
 @dataclass
@@ -151,16 +162,27 @@ def inlet_current_range_a(config: SimulationConfig) -> tuple[float, float]:
 
 
 def add_plant(
-    builder: DiagramBuilder, config: SimulationConfig, nominal: "NominalPneumatic | None"
+    builder: DiagramBuilder,
+    config: SimulationConfig,
+    nominal: "NominalPneumatic | None",
+    plant_context_parameters: Collection[str] = SWEPT_PARAMETERS,
 ) -> AddedPlant:
     """Adds ``config.plant``, at rest at ``config.start_lift_m`` for the pneumatic plant (whose
-    starting currents come from ``nominal``'s allocation) or at the model's operating point."""
+    starting currents come from ``nominal``'s allocation) or at the model's operating point.
+    ``plant_context_parameters``: the pneumatic plant's ``context_parameters``."""
     paper = config.paper
     if config.plant == "pneumatic":
         p = config.pneumatic
         start_inlet_a, start_outlet_a = nominal.allocation.currents(config.start_lift_m)
         state = equilibrium_state(p, float(start_inlet_a), float(start_outlet_a))
-        plant = add_pneumatic_plant(builder, p, state, p.simulation_step_s, name="pneumatic_plant")
+        plant = add_pneumatic_plant(
+            builder,
+            p,
+            state,
+            p.simulation_step_s,
+            name=PNEUMATIC_PLANT_NAME,
+            context_parameters=plant_context_parameters,
+        )
         return AddedPlant(
             inlet=plant.inputs["inlet_valve_current_a"],
             outlet=plant.inputs["outlet_valve_current_a"],
@@ -319,7 +341,10 @@ def measurement_delay_samples(config: SimulationConfig) -> int:
 
 
 def build_closed_loop(
-    config: SimulationConfig, record: bool = True, nominal: "NominalPneumatic | None" = None
+    config: SimulationConfig,
+    record: bool = True,
+    nominal: "NominalPneumatic | None" = None,
+    plant_context_parameters: Collection[str] = SWEPT_PARAMETERS,
 ) -> ClosedLoop:
     """Wires the whole chain for ``config``: its plant, cameras, filters, fusion and controller.
 
@@ -328,6 +353,8 @@ def build_closed_loop(
         record: add VectorLogSinks for every recorded signal (the core-speed benchmark omits them).
         nominal: ``NominalPneumatic.of(config)`` when the caller has it already (a Monte Carlo
             over head masses shares one); built here otherwise.
+        plant_context_parameters: the pneumatic plant's constants that ``set_plant_parameters``
+            can change (``pneumatic_plant.add_pneumatic_plant``'s ``context_parameters``).
 
     Exported outputs: ``reference_head_height_m``, ``head_height_m``, ``inlet_valve_current_a``,
     ``outlet_valve_current_a``, ``fusion.estimated_state``, ``fusion.covariance``, and for each
@@ -340,7 +367,7 @@ def build_closed_loop(
     # a step (benchmarks/system_overhead.py), and the loop must run >= 1000x faster than real time.
     if nominal is None and config.plant == "pneumatic":
         nominal = NominalPneumatic.of(config)
-    plant = add_plant(builder, config, nominal)
+    plant = add_plant(builder, config, nominal, plant_context_parameters)
     start_height_m = plant.start_height_m
     reference = builder.AddNamedSystem(
         "reference",
@@ -462,3 +489,34 @@ def assemble_loop(
         sensor_names=sensing.sensor_names,
         loggers=loggers,
     )
+
+
+def set_plant_parameters(
+    diagram: Diagram, context: Context, parameters: PneumaticParameters
+) -> None:
+    """Writes a pneumatic plant's constants (a drawn head mass) into a built loop's Context, with
+    the plant at rest at the loop's starting valve currents.
+
+    A sweep over plants then simulates one built Diagram instead of building one per draw. Only
+    the plant changes: the reference, and the start height the filters and the controller begin
+    from, stay those the loop was built for (a heavier head starts lower, and the loop first
+    brings it to the reference). Write after ``SetRandomContext`` or ``SetDefaultContext``, which
+    restore the constants the loop was built with.
+
+    Args:
+        diagram: a closed loop's Diagram (``build_closed_loop``) with the pneumatic plant.
+        context: ``diagram``'s Context.
+        parameters: the plant's new constants; only its context parameters (``SWEPT_PARAMETERS``
+            unless built otherwise) may differ from the ones the loop was built with.
+
+    Raises:
+        ValueError: the loop has no pneumatic plant, or ``parameters`` changes a constant the
+            plant was built with as a number.
+        ConfigError: ``parameters`` cannot describe a physical plant.
+    """
+    if not diagram.HasSubsystemNamed(PNEUMATIC_PLANT_NAME):
+        raise ValueError(
+            f"{diagram.get_name()}: no {PNEUMATIC_PLANT_NAME!r}; plant parameters can be set only "
+            "in a loop around the pneumatic plant"
+        )
+    set_pneumatic_parameters(diagram, context, parameters, name=PNEUMATIC_PLANT_NAME)

@@ -34,8 +34,9 @@ from maskless.analysis.summary import format_summary, summarize
 from maskless.assets.loader import ConfigError
 from maskless.diagrams.background import Worker, serve_calls
 from maskless.diagrams.cli import add_config_argument
-from maskless.diagrams.closed_loop import ClosedLoop, build_closed_loop
+from maskless.diagrams.closed_loop import ClosedLoop, build_closed_loop, set_plant_parameters
 from maskless.diagrams.config import SimulationConfig, load_config_with_overrides
+from maskless.systems.pneumatic_physics import PneumaticParameters
 
 # What `maskless simulate` reports as a message rather than a traceback.
 USER_ERRORS = (ConfigError, FileNotFoundError)
@@ -95,12 +96,16 @@ def simulate_loop(
     *,
     progress: Callable[[float, float], None] | None = None,
     on_chunk: Callable[[dict[str, Signal]], None] | None = None,
+    plant_parameters: PneumaticParameters | None = None,
 ) -> SimulationRun:
     """Simulates a built loop for ``config.duration_s``, seeded with ``config.random_seed``, and
-    collects its logs (see ``run_closed_loop`` for the callbacks)."""
+    collects its logs (see ``run_closed_loop`` for the callbacks); with ``plant_parameters``, the
+    pneumatic plant runs with those constants (``set_plant_parameters``), not the built ones."""
     simulator = Simulator(closed_loop.diagram)
     context = simulator.get_mutable_context()
     closed_loop.diagram.SetRandomContext(context, RandomGenerator(config.random_seed))
+    if plant_parameters is not None:
+        set_plant_parameters(closed_loop.diagram, context, plant_parameters)
     start = time.perf_counter()
     simulator.Initialize()
     chunks = _PROGRESS_CHUNKS if progress is not None or on_chunk is not None else 1

@@ -1,3 +1,4 @@
+import dataclasses
 import json
 
 import numpy as np
@@ -5,8 +6,14 @@ import pytest
 from mcap.reader import make_reader
 
 from maskless.analysis.recording import read_recording, write_recording
-from maskless.diagrams.closed_loop import build_closed_loop
-from maskless.diagrams.simulate import recording_channels, run_closed_loop
+from maskless.diagrams.closed_loop import (
+    NominalPneumatic,
+    build_closed_loop,
+    set_plant_parameters,
+)
+from maskless.diagrams.simulate import recording_channels, run_closed_loop, simulate_loop
+from maskless.systems.pneumatic_physics import LIFT
+from maskless.systems.pneumatic_plant import equilibrium_state
 
 TOPICS = {
     "/reference",
@@ -155,3 +162,28 @@ def test_dropped_and_invalid_frames_never_reach_the_estimate(config):
     assert np.all(np.isfinite(fused))
     # Zeros would read as a head 0.9-1.04 m up; the estimate stays within millimetres of truth.
     assert np.max(np.abs(fused[0] - head)) < 0.01
+
+
+def test_a_head_written_into_a_built_loop_starts_at_its_own_rest(config):
+    config.duration_s = 5.0
+    loop = build_closed_loop(config)
+    built = simulate_loop(loop, config).signals
+    same = simulate_loop(loop, config, plant_parameters=config.pneumatic).signals
+    for name, signal in built.items():
+        np.testing.assert_array_equal(same[name].values, signal.values, err_msg=name)
+    heavier = dataclasses.replace(config.pneumatic, head_mass_kg=6.0)
+    heads = simulate_loop(loop, config, plant_parameters=heavier).signals["head_height_m"]
+    currents = NominalPneumatic.of(config).allocation.currents(config.start_lift_m)
+    rest = equilibrium_state(heavier, *map(float, currents))[LIFT]
+    assert heads.values[0, 0] == pytest.approx(heavier.rest_head_height_m + rest, abs=1e-12)
+    start_gap, end_gap = heads.values[0, [0, -1]] - built["head_height_m"].values[0, [0, -1]]
+    assert start_gap < -2e-3
+    # The reference and the filters keep the built start: the loop lifts the heavier head to it.
+    assert start_gap < 2 * end_gap < 0
+
+
+def test_plant_parameters_need_the_pneumatic_plant(paper_config):
+    loop = build_closed_loop(paper_config, record=False)
+    context = loop.diagram.CreateDefaultContext()
+    with pytest.raises(ValueError, match="no 'pneumatic_plant'"):
+        set_plant_parameters(loop.diagram, context, paper_config.pneumatic)

@@ -15,10 +15,17 @@ from pathlib import Path
 from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import Simulator
 
-from maskless.diagrams.closed_loop import ClosedLoop, Signal, build_closed_loop, logged_signals
+from maskless.diagrams.closed_loop import (
+    ClosedLoop,
+    Signal,
+    build_closed_loop,
+    logged_signals,
+    set_plant_parameters,
+)
 from maskless.diagrams.run_recording import signal_channels
 from maskless.diagrams.run_summary import summarize, summary_with_timing
 from maskless.diagrams.scenario import Scenario
+from maskless.systems.plant.pneumatic_physics import PneumaticParameters
 
 # A long run reports progress after each of this many equal chunks.
 PROGRESS_CHUNKS = 10
@@ -135,14 +142,20 @@ def simulate_loop(
     *,
     progress: Callable[[float, float], None] | None = None,
     on_chunk: Callable[[dict[str, Signal]], None] | None = None,
+    plant_parameters: PneumaticParameters | None = None,
 ) -> SimulationRun:
     """Simulates a built loop and collects its logs (see ``simulate`` for the callbacks).
 
-    It runs for ``scenario.duration_s``, seeded with ``scenario.random_seed``.
+    It runs for ``scenario.duration_s``, seeded with ``scenario.random_seed``. With
+    ``plant_parameters``, the pneumatic plant runs with those constants instead of the built ones
+    (``closed_loop.set_plant_parameters``; the loop must be built with them as
+    ``plant_context_parameters``), so a sweep over heads needs one built loop.
     """
     simulator = Simulator(closed_loop.diagram)
     context = simulator.get_mutable_context()
     closed_loop.diagram.SetRandomContext(context, RandomGenerator(scenario.random_seed))
+    if plant_parameters is not None:
+        set_plant_parameters(closed_loop.diagram, context, plant_parameters)
     start = time.perf_counter()
     simulator.Initialize()
     chunks = PROGRESS_CHUNKS if progress is not None or on_chunk is not None else 1

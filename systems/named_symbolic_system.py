@@ -15,6 +15,19 @@ step (benchmarks/system_overhead.py), and the loop's speed target needs the flat
 The default state of a SymbolicVectorSystem is zero and cannot be changed from Python, so the
 components store their state relative to the configured initial value: a fresh Context then starts
 where it should, with no set-up call a user could forget.
+
+Constants a Context may change (a patient's head mass in a Monte Carlo run) are symbolic variables
+held by a ``ParameterSource``, ``{name}.parameters``, as its numeric parameter, whose default is the
+configured value. SymbolicVectorSystem's own ``parameter=`` argument would declare a numeric
+parameter too, but with NaN defaults that Python cannot change, so every fresh Context would need
+a set-up call.
+
+A SymbolicVectorSystem evaluates its expressions by walking them, every node at every step, and
+copies a table of all its variables at each evaluation, so constants held as variables cost time
+that numbers folded into the expressions do not. Every part of the expressions that depends on the
+parameters alone (a valve's flow scale, a head's weight) is therefore taken out and computed by
+the ParameterSource when the parameters are written; the SymbolicVectorSystem reads only those
+values, through its input vector.
 """
 
 import functools
@@ -23,9 +36,26 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydrake.symbolic import Expression, Variable
-from pydrake.systems.framework import Diagram, DiagramBuilder, InputPort, OutputPort
-from pydrake.systems.primitives import Demultiplexer, Multiplexer, SymbolicVectorSystem
+from pydrake.symbolic import Evaluate, Expression, ExpressionKind, Variable, Variables
+from pydrake.systems.framework import (
+    BasicVector,
+    Context,
+    Diagram,
+    DiagramBuilder,
+    InputPort,
+    OutputPort,
+)
+from pydrake.systems.primitives import (
+    ConstantVectorSource,
+    Demultiplexer,
+    Multiplexer,
+    SymbolicVectorSystem,
+)
+
+from maskless.errors import ConfigError
+
+# The internal name of the input that carries the constants into the system's input vector.
+_CONSTANTS_INPUT = "constants"
 
 
 @dataclass
@@ -96,6 +126,7 @@ def add_named_symbolic_system(
     dynamics: Sequence[Expression] = (),
     time: Variable | None = None,
     time_period: float = 0.0,
+    parameters: Sequence[tuple[Variable, float]] = (),
 ) -> PortMap:
     """Adds one SymbolicVectorSystem named ``name`` to ``builder``, with named ports.
 
@@ -109,7 +140,23 @@ def add_named_symbolic_system(
         dynamics: the next state (discrete) or the derivative (continuous), one per state variable.
         time: the variable standing for time in the expressions, if any.
         time_period: the update period in s; 0 for continuous dynamics.
+        parameters: (variable, default value) of each constant a Context may change; the
+            ParameterSource ``{name}.parameters`` holds them (``parameter_source``). Those the
+            expressions do not contain are held too, fixed, as a record of the build.
     """
+    source = None
+    if parameters:
+        splitter = _ConstantSplitter([variable for variable, _ in parameters])
+        dynamics = [splitter(_as_expression(e)) for e in dynamics]
+        outputs = [
+            (port_name, [splitter(_as_expression(e)) for e in expressions])
+            for port_name, expressions in outputs
+        ]
+        source = builder.AddNamedSystem(
+            f"{name}.parameters", ParameterSource(parameters, splitter.constants)
+        )
+        if splitter.constants:
+            inputs = [*inputs, (_CONSTANTS_INPUT, [variable for variable, _ in splitter.constants])]
     core = builder.AddNamedSystem(
         name,
         SymbolicVectorSystem(
@@ -136,6 +183,8 @@ def add_named_symbolic_system(
         builder.Connect(mux.get_output_port(), core.get_input_port())
         for index, (port_name, _) in enumerate(inputs):
             ports.inputs[port_name] = mux.get_input_port(index)
+    if _CONSTANTS_INPUT in ports.inputs:
+        builder.Connect(source.get_output_port(), ports.inputs.pop(_CONSTANTS_INPUT))
     if len(outputs) == 1:
         ports.outputs[outputs[0][0]] = core.get_output_port()
     else:
@@ -146,6 +195,150 @@ def add_named_symbolic_system(
         for index, (port_name, _) in enumerate(outputs):
             ports.outputs[port_name] = demux.get_output_port(index)
     return ports
+
+
+class ParameterSource(ConstantVectorSource):
+    """Holds a symbolic system's parameters and the constants its expressions read.
+
+    .. pydrake_system::
+
+        name: ParameterSource
+        output_ports:
+        - y0
+
+    Two numeric parameters: the parameters (``names`` order; the defaults are the values given)
+    and, as the source value the output carries, the constants computed from them. ``set_values``
+    writes both. Parameters that no constant reads (``fixed_names``) are numbers in the system's
+    expressions: they are held as a record of what it was built with and cannot change.
+
+    A ConstantVectorSource (C++) rather than a Python system computing its output from the
+    parameters: with the latter, its output cached, the closed loop ran about 3 % slower.
+
+    Args:
+        parameters: (variable, default value) of each parameter.
+        constants: (variable, expression of the parameters) of each value the output carries.
+    """
+
+    def __init__(
+        self,
+        parameters: Sequence[tuple[Variable, float]],
+        constants: Sequence[tuple[Variable, Expression]],
+    ):
+        self._variables = [variable for variable, _ in parameters]
+        self._defaults = np.array([value for _, value in parameters], dtype=float)
+        self._expressions = np.array([expression for _, expression in constants], dtype=object)
+        ConstantVectorSource.__init__(self, self._constants(self._defaults))
+        self._parameter_index = self.DeclareNumericParameter(BasicVector(self._defaults))
+        self.names = tuple(variable.get_name() for variable in self._variables)
+        read = Variables()
+        for expression in self._expressions:
+            read.insert(expression.GetVariables())
+        self._fixed = np.array([not read.include(variable) for variable in self._variables])
+        self.fixed_names = tuple(np.array(self.names, dtype=object)[self._fixed])
+
+    def get_values(self, context: Context) -> np.ndarray:
+        """The parameters in ``context`` (``names`` order)."""
+        return context.get_numeric_parameter(self._parameter_index).CopyToVector()
+
+    def set_values(self, context: Context, values) -> None:
+        """Writes the parameters (``names`` order) and the constants computed from them into
+        ``context``.
+
+        Raises:
+            ConfigError: ``values`` does not have one entry per name, or changes a fixed one.
+        """
+        values = np.asarray(values, dtype=float).ravel()
+        if values.size != len(self.names):
+            raise ConfigError(
+                f"{self.get_name()}: {values.size} values; expected {len(self.names)}: "
+                + ", ".join(self.names)
+            )
+        changed = self._fixed & (values != self._defaults)
+        if changed.any():
+            raise ConfigError(
+                f"{self.get_name()}: "
+                + ", ".join(
+                    f"{name} = {value} (built with {default})"
+                    for name, value, default in zip(
+                        np.array(self.names, dtype=object)[changed],
+                        values[changed],
+                        self._defaults[changed],
+                        strict=True,
+                    )
+                )
+                + ": a number in the system's expressions, fixed when it was built"
+            )
+        context.get_mutable_numeric_parameter(self._parameter_index).SetFromVector(values)
+        self.get_mutable_source_value(context).SetFromVector(self._constants(values))
+
+    def _constants(self, values: np.ndarray) -> np.ndarray:
+        environment = dict(zip(self._variables, values, strict=True))
+        return Evaluate(self._expressions.reshape(-1, 1), environment).ravel()
+
+
+def parameter_source(diagram: Diagram, name: str) -> ParameterSource:
+    """The ParameterSource of the symbolic system ``name``, a subsystem of ``diagram`` added with
+    ``parameters``; its Context is ``diagram.GetMutableSubsystemContext(source, context)``.
+    """
+    return diagram.GetSubsystemByName(f"{name}.parameters")
+
+
+class _ConstantSplitter:
+    """Replaces each largest part of an expression that depends on the parameters alone by a new
+    variable, and keeps (variable, part) in ``constants``; one variable per distinct part.
+
+    Each variable costs the system time at every evaluation, so a part's number factor stays in
+    the expression: ``-0.5 * w`` and ``0.5 * w`` share the variable of ``w``.
+    """
+
+    def __init__(self, parameters: Sequence[Variable]):
+        self._parameters = Variables(list(parameters))
+        self._by_text: dict[str, list[tuple[Expression, Variable]]] = {}
+        self.constants: list[tuple[Variable, Expression]] = []
+
+    def __call__(self, expression: Expression) -> Expression:
+        kind = expression.get_kind()
+        if kind == ExpressionKind.Constant:
+            return expression
+        if self._of_parameters(expression):
+            return self._constant(expression)
+        if kind == ExpressionKind.Var:
+            return expression
+        function, arguments = expression.Unapply()
+        for a in arguments:
+            if not isinstance(a, Expression | float) and any(
+                self._parameters.include(v) for v in a.GetFreeVariables()
+            ):
+                raise NotImplementedError(f"parameters in the condition of {expression}")
+        if kind in (ExpressionKind.Add, ExpressionKind.Mul):
+            # A sum or a product is one node over all its terms (its number first), so its
+            # parameter-only terms make one constant.
+            fixed = [a for a in arguments if self._of_parameters(a)]
+            varying = [self(a) for a in arguments if not self._of_parameters(a)]
+            return function(self._constant(_as_expression(function(*fixed))), *varying)
+        return function(*(self(a) if isinstance(a, Expression) else a for a in arguments))
+
+    def _of_parameters(self, value) -> bool:
+        return not isinstance(value, Expression) or value.GetVariables().IsSubsetOf(
+            self._parameters
+        )
+
+    def _constant(self, expression: Expression) -> Expression:
+        kind = expression.get_kind()
+        if kind == ExpressionKind.Constant:
+            return expression
+        if kind == ExpressionKind.Mul:
+            number, *factors = expression.Unapply()[1]
+            if number != 1.0:
+                return number * self._constant(_as_expression(expression.Unapply()[0](*factors)))
+        same_text = self._by_text.setdefault(expression.to_string(), [])
+        for known, variable in same_text:
+            if known.EqualTo(expression):
+                return Expression(variable)
+        variable = Variable(f"constant_{len(self.constants)}")
+        same_text.append((expression, variable))
+        self.constants.append((variable, expression))
+        return Expression(variable)
 
 
 def _as_expression(value) -> Expression:

@@ -1,15 +1,20 @@
 """The closed-loop Diagram: its names, its recording read by mcap's own reader, Eq. 10, seeds."""
 
+import dataclasses
 import json
 
 import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from maskless.diagrams.closed_loop import build_closed_loop
+from maskless.diagrams.closed_loop import build_closed_loop, set_plant_parameters
+from maskless.diagrams.controller_design import NominalPneumatic
 from maskless.diagrams.scenario import controller_from_shorthand, plant_from_shorthand
-from maskless.diagrams.simulation import simulate
+from maskless.diagrams.simulation import simulate, simulate_loop
+from maskless.errors import ConfigError
 from maskless.recording import read_recording, write_recording
+from maskless.systems.plant.pneumatic_physics import LIFT
+from maskless.systems.plant.pneumatic_plant import SWEPT_PARAMETERS, equilibrium_state
 
 TOPICS = {
     "/reference",
@@ -160,3 +165,38 @@ def test_dropped_and_invalid_frames_never_reach_the_estimate(config):
     assert np.all(np.isfinite(fused))
     # Zeros would read as a head 0.9-1.04 m up; the estimate stays within millimetres of truth.
     assert np.max(np.abs(fused[0] - head)) < 0.01
+
+
+def test_a_head_written_into_a_built_loop_starts_at_its_own_rest(config):
+    config.duration_s = 5.0
+    loop = build_closed_loop(config, plant_context_parameters=SWEPT_PARAMETERS)
+    built = simulate_loop(loop, config).signals
+    same = simulate_loop(loop, config, plant_parameters=config.pneumatic).signals
+    for name, signal in built.items():
+        np.testing.assert_array_equal(same[name].values, signal.values, err_msg=name)
+    heavier = dataclasses.replace(config.pneumatic, head_mass_kg=6.0)
+    heads = simulate_loop(loop, config, plant_parameters=heavier).signals["head_height_m"]
+    currents = NominalPneumatic.of(config).allocation.currents(config.start_lift_m)
+    rest = equilibrium_state(heavier, *map(float, currents))[LIFT]
+    assert heads.values[0, 0] == pytest.approx(heavier.rest_head_height_m + rest, abs=1e-12)
+    start_gap, end_gap = heads.values[0, [0, -1]] - built["head_height_m"].values[0, [0, -1]]
+    assert start_gap < -2e-3
+    # The reference and the filters keep the built start: the loop lifts the heavier head to it.
+    assert start_gap < 2 * end_gap < 0
+
+
+def test_plant_parameters_need_the_pneumatic_plant(paper_config):
+    loop = build_closed_loop(paper_config, record=False)
+    context = loop.diagram.CreateDefaultContext()
+    with pytest.raises(ValueError, match="no 'pneumatic_plant'"):
+        set_plant_parameters(loop.diagram, context, paper_config.pneumatic)
+
+
+def test_the_default_loop_compiles_its_constants_and_says_so(config):
+    # Built without context parameters (the default), a head mass cannot be written: the error
+    # names the constant and the value it was compiled with.
+    config.duration_s = 1.0
+    loop = build_closed_loop(config, record=False)
+    heavier = dataclasses.replace(config.pneumatic, head_mass_kg=6.0)
+    with pytest.raises(ConfigError, match="head_mass_kg"):
+        simulate_loop(loop, config, plant_parameters=heavier)

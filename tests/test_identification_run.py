@@ -8,6 +8,7 @@ import yaml
 from identification_records import PAPER_DATA, paper_record, simulate_record
 from version1_recording import write_version1_recording
 
+import maskless
 from maskless.analysis.identification.model_file import load_identified_model
 from maskless.diagrams.cli import main
 
@@ -331,7 +332,9 @@ def test_identify_on_arrays_returns_the_model_about_the_records_operating_point(
     for k in range(1, u.size):
         y[k] = 0.2 + 0.9 * (y[k - 1] - 0.2) + 0.01 * (u[k - 1] - 0.1)
     y += 1e-6 * rng.standard_normal(u.size)
-    identified = maskless.identify(u, y, sample_period_s=0.1, order=1, input_unit="A", output_unit="m")
+    identified = maskless.identify(
+        u, y, sample_period_s=0.1, order=1, input_unit="A", output_unit="m"
+    )
     model = identified.model
     assert model.dc_gain() == pytest.approx(0.1, rel=1e-3)
     assert model.operating_input == pytest.approx(np.mean(u)) and model.input_unit == "A"

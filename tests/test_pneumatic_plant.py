@@ -16,10 +16,19 @@ from maskless.systems.plant.pneumatic_physics import (
     valve_opening,
 )
 from maskless.systems.plant.pneumatic_plant import (
+    COMPILED_PARAMETER_NAMES,
+    PARAMETER_NAMES,
+    STEP_PARAMETERS,
+    SWEPT_PARAMETERS,
     PneumaticPlant,
+    add_pneumatic_plant,
+    compiled_parameter_vector,
     equilibrium_state,
     load_pneumatic_parameters,
     make_pneumatic_plant,
+    parameters_from_vector,
+    pneumatic_parameters,
+    set_pneumatic_parameters,
     validate_pneumatic_parameters,
 )
 
@@ -204,3 +213,109 @@ def test_new_parameters_in_a_used_context_take_effect(p):
     after = plant.EvalTimeDerivatives(context).CopyToVector()
     np.testing.assert_array_equal(after, time_derivatives(PneumaticPlant(heavy), state, 0.12, 0.0))
     assert not np.array_equal(before, after)
+
+
+def slew_with_parameters(built_with, built_start, context_parameters, written=None):
+    """Head heights (every step) of a compiled plant built with ``built_with`` at ``built_start``
+    and run with ``written`` written into its Context: rest at 0.11 A on the inlet, then a slew
+    on the inlet to 0.165 A and on the outlet to 0.1 A.
+    """
+    builder = DiagramBuilder()
+    plant = add_pneumatic_plant(
+        builder,
+        built_with,
+        built_start,
+        built_with.simulation_step_s,
+        name="plant",
+        context_parameters=context_parameters,
+    )
+    for port, current in (("inlet_valve_current_a", 0.165), ("outlet_valve_current_a", 0.1)):
+        source = builder.AddSystem(ConstantVectorSource([current]))
+        builder.Connect(source.get_output_port(), plant.inputs[port])
+    sink = builder.AddSystem(VectorLogSink(1, built_with.simulation_step_s))
+    builder.Connect(plant.outputs["head_height_m"], sink.get_input_port())
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    if written is not None:
+        set_pneumatic_parameters(diagram, simulator.get_mutable_context(), written, name="plant")
+    simulator.AdvanceTo(3.0)
+    return sink.FindLog(simulator.get_context()).data()[0]
+
+
+@pytest.mark.parametrize(
+    "context_parameters, changes",
+    [
+        (SWEPT_PARAMETERS, {"head_mass_kg": 6.0}),
+        (SWEPT_PARAMETERS, {"stiffness_n_m": 5000.0, "leak_sonic_conductance_m3_s_pa": 9e-9}),
+        (
+            STEP_PARAMETERS,
+            {"head_mass_kg": 4.0, "rest_volume_m3": 0.003, "polytropic_exponent": 1.0},
+        ),
+    ],
+    ids=["head", "bladder", "every-constant"],
+)
+def test_parameters_written_in_a_context_run_as_a_plant_built_with_them(
+    p, context_parameters, changes
+):
+    changed = dataclasses.replace(p, **changes)
+    start = equilibrium_state(p, 0.11, 0.0)
+    written = slew_with_parameters(p, start, context_parameters, changed)
+    # The reference: a plant built with the changed constants as numbers, at their own rest at
+    # the same currents (where set_pneumatic_parameters puts the plant by default).
+    rebuilt = slew_with_parameters(changed, equilibrium_state(changed, 0.11, 0.0), ())
+    assert abs(rebuilt[0] - slew_with_parameters(p, start, ())[0]) > 1e-4  # the head moved
+    np.testing.assert_allclose(written, rebuilt, rtol=0, atol=1e-14)
+
+
+def test_a_fresh_context_runs_the_built_plant(p):
+    start = equilibrium_state(p, 0.11, 0.0)
+    np.testing.assert_array_equal(
+        slew_with_parameters(p, start, SWEPT_PARAMETERS, written=None),
+        slew_with_parameters(p, start, SWEPT_PARAMETERS, written=p),
+    )
+
+
+def test_parameter_names_and_sizes(p):
+    start = equilibrium_state(p, 0.11, 0.0)
+    plant = make_pneumatic_plant(p, start, p.simulation_step_s)
+    source = plant.GetSubsystemByName("pneumatic_plant.parameters")
+    assert len(PARAMETER_NAMES) == 36 and PARAMETER_NAMES[9] == "inlet.sonic_conductance_m3_s_pa"
+    assert (
+        source.names
+        == COMPILED_PARAMETER_NAMES
+        == (
+            *PARAMETER_NAMES,
+            "state_origin.gauge_pressure_pa",
+            "state_origin.lift_m",
+            "state_origin.lift_rate_m_s",
+            "state_origin.inlet_spool_current_a",
+            "state_origin.outlet_spool_current_a",
+        )
+    )
+    assert set(COMPILED_PARAMETER_NAMES) - set(source.fixed_names) == set(SWEPT_PARAMETERS)
+    context = plant.CreateDefaultContext()
+    held = source.get_values(plant.GetSubsystemContext(source, context))
+    np.testing.assert_array_equal(held, compiled_parameter_vector(p, start))
+    assert pneumatic_parameters(plant, context) == p
+
+
+def test_a_bad_parameter_vector_names_what_was_expected(p):
+    plant = make_pneumatic_plant(p, equilibrium_state(p, 0.0, 0.0), p.simulation_step_s)
+    source = plant.GetSubsystemByName("pneumatic_plant.parameters")
+    context = plant.CreateDefaultContext()
+    source_context = plant.GetMutableSubsystemContext(source, context)
+    with pytest.raises(ValueError, match="3 values; expected 41: supply_gauge_pressure_pa, .*"):
+        source.set_values(source_context, np.ones(3))
+    with pytest.raises(ValueError, match="has 35 entries; expected 36: .*simulation_step_s$"):
+        parameters_from_vector(np.ones(35))
+    with pytest.raises(ValueError, match="initial_state has 4 entries; expected 5: gauge_pres"):
+        set_pneumatic_parameters(plant, context, p, initial_state=np.zeros(4))
+    # A constant the plant was built with as a number cannot change in its Context.
+    with pytest.raises(ValueError, match=r"rest_volume_m3 = 0.003 \(built with 0.0037\)"):
+        set_pneumatic_parameters(plant, context, dataclasses.replace(p, rest_volume_m3=0.003))
+    with pytest.raises(ConfigError, match="pneumatic.head_mass_kg"):
+        set_pneumatic_parameters(plant, context, dataclasses.replace(p, head_mass_kg=-1.0))
+    with pytest.raises(ValueError, match="context_parameters \\['simulation_step_s'\\]"):
+        make_pneumatic_plant(
+            p, equilibrium_state(p, 0.0, 0.0), 0.1, context_parameters=("simulation_step_s",)
+        )

@@ -11,6 +11,9 @@ Two forms run the same equations (``pneumatic_physics.state_derivatives``):
   microseconds per evaluation and the closed loop must run >= 1000x faster than real time; and a
   continuous SymbolicVectorSystem cannot share a Diagram with the discrete ones of the sensors,
   filters and controller (Drake 1.51 aborts in SymbolicVectorSystem::DoCalcTimeDerivatives).
+  The constants a sweep draws (``SWEPT_PARAMETERS`` by default: head, bladder, valves, supply)
+  are numeric parameters of its Context too: ``set_pneumatic_parameters`` writes them, with a
+  matching start, so a Monte Carlo over heads reuses one built Diagram.
 
 Both have the port contract of every maskless plant: two valve currents in (A), the head height
 above the table out (m).
@@ -18,13 +21,17 @@ above the table out (m).
 
 import dataclasses
 import math
+from collections.abc import Collection
+from operator import attrgetter
 
 import numpy as np
 import pydrake.math as dm
 from pydrake.common.value import AbstractValue
-from pydrake.symbolic import MakeVectorVariable, Variable
+from pydrake.symbolic import Expression, MakeVectorVariable, Variable
 from pydrake.systems.framework import (
     BasicVector_,
+    Context,
+    Diagram,
     DiagramBuilder,
     LeafSystem_,
     NumericParameterIndex,
@@ -40,6 +47,7 @@ from maskless.systems.named_symbolic_system import (
     add_named_symbolic_system,
     building_expressions,
     diagram_form,
+    parameter_source,
 )
 from maskless.systems.plant.pneumatic_physics import (
     GAUGE_PRESSURE,
@@ -125,33 +133,63 @@ def validate_pneumatic_parameters(p: PneumaticParameters, prefix: str = "pneumat
         fail("rest_volume_m3", p.rest_volume_m3, "a positive volume down to min_lift_m")
 
 
-def _flat_fields(p, prefix: str = ""):
-    """(dotted name, value) of every number in a parameter tree, in declaration order."""
-    for f in dataclasses.fields(p):
-        value = getattr(p, f.name)
-        if dataclasses.is_dataclass(value):
-            yield from _flat_fields(value, f"{prefix}{f.name}.")
+def _nested_class(f: dataclasses.Field):
+    """The dataclass a parameter field groups (a valve), or None for a number."""
+    return f.default_factory if f.default_factory is not dataclasses.MISSING else None
+
+
+def _dotted_names(cls, prefix: str = ""):
+    """The dotted name of every number in a parameter class, in declaration order."""
+    for f in dataclasses.fields(cls):
+        nested = _nested_class(f)
+        if nested is not None:
+            yield from _dotted_names(nested, f"{prefix}{f.name}.")
         else:
-            yield f"{prefix}{f.name}", value
+            yield f"{prefix}{f.name}"
+
+
+PARAMETER_NAMES = tuple(_dotted_names(PneumaticParameters))
+"""The entries of ``parameter_vector``, as dotted field names (``inlet.time_constant_s``)."""
+
+
+def _flat_fields(p: PneumaticParameters):
+    """(dotted name, value) of every number in ``p``, in ``PARAMETER_NAMES`` order."""
+    for name in PARAMETER_NAMES:
+        yield name, attrgetter(name)(p)
 
 
 def parameter_vector(p: PneumaticParameters) -> np.ndarray:
-    """The parameters as one vector, in declaration order (the plant's numeric parameter)."""
+    """The parameters as one vector, in ``PARAMETER_NAMES`` order (the plant's numeric
+    parameter).
+    """
     return np.array([value for _, value in _flat_fields(p)], dtype=float)
 
 
 def parameters_from_vector(values) -> PneumaticParameters:
-    """Inverse of ``parameter_vector``; the entries may be any Drake scalar type."""
-    values = iter(values)
+    """Inverse of ``parameter_vector``; the entries may be any Drake scalar type.
+
+    Raises:
+        ConfigError: ``values`` does not have one entry per name of ``PARAMETER_NAMES``.
+    """
+    values = list(values)
+    _check_size("a pneumatic parameter vector", values, PARAMETER_NAMES)
+    entries = iter(values)
 
     def fill(cls):
         kwargs = {}
         for f in dataclasses.fields(cls):
-            nested = f.default_factory if f.default_factory is not dataclasses.MISSING else None
-            kwargs[f.name] = fill(nested) if nested is not None else next(values)
+            nested = _nested_class(f)
+            kwargs[f.name] = fill(nested) if nested is not None else next(entries)
         return cls(**kwargs)
 
     return fill(PneumaticParameters)
+
+
+def _check_size(what: str, values, names) -> None:
+    if len(values) != len(names):
+        raise ConfigError(
+            f"{what} has {len(values)} entries; expected {len(names)}: {', '.join(names)}"
+        )
 
 
 def steady_gauge_pressure_pa(p: PneumaticParameters, inlet_opening, outlet_opening) -> float:
@@ -307,10 +345,44 @@ def semi_implicit_step(state, inlet_current, outlet_current, p: PneumaticParamet
         strict=True,
     ):
         # ds/dt = (outside-band error) / tau is linear in s while outside the band: exact decay.
-        gain = valve.time_constant_s * (1.0 - math.exp(-step_s / valve.time_constant_s))
+        gain = valve.time_constant_s * (1.0 - dm.exp(-step_s / valve.time_constant_s))
         next_spools.append(spool + gain * spool_rate(current, spool, valve))
     pressure_rate = gauge_pressure_rate(gauge_pressure, next_lift, lift_rate, net_flow, p)
     return [gauge_pressure + step_s * pressure_rate, next_lift, lift_rate, *next_spools]
+
+
+SWEPT_PARAMETERS = (
+    "supply_gauge_pressure_pa",
+    "inlet.sonic_conductance_m3_s_pa",
+    "outlet.sonic_conductance_m3_s_pa",
+    "leak_sonic_conductance_m3_s_pa",
+    "stiffness_n_m",
+    "damping_n_s_m",
+    "head_mass_kg",
+)
+"""What a Context can change in a compiled plant by default: what differs between patients (the
+head) and between installations (bladder, valves, compressor)."""
+
+STEP_PARAMETERS = tuple(
+    name for name in PARAMETER_NAMES if name not in ("rest_head_height_m", "simulation_step_s")
+)
+"""Every constant of the step (``semi_implicit_step``)."""
+
+STATE_ORIGIN_NAMES = tuple(f"state_origin.{name}" for name in STATE_NAMES)
+COMPILED_PARAMETER_NAMES = (*PARAMETER_NAMES, *STATE_ORIGIN_NAMES)
+"""What a compiled plant's ParameterSource holds (``compiled_parameter_vector``)."""
+
+
+def compiled_parameter_vector(parameters: PneumaticParameters, state_origin) -> np.ndarray:
+    """What a compiled plant's ParameterSource holds: ``parameter_vector(parameters)``, then the
+    state its state is stored relative to (``COMPILED_PARAMETER_NAMES`` order).
+
+    Raises:
+        ConfigError: ``state_origin`` does not have one entry per name of ``STATE_NAMES``.
+    """
+    state_origin = np.asarray(state_origin, dtype=float).ravel()
+    _check_size("a plant state", state_origin, STATE_NAMES)
+    return np.concatenate([parameter_vector(parameters), state_origin])
 
 
 @building_expressions
@@ -320,6 +392,7 @@ def add_pneumatic_plant(
     initial_state,
     step_s: float,
     name: str = "pneumatic_plant",
+    context_parameters: Collection[str] = SWEPT_PARAMETERS,
 ) -> PortMap:
     """Adds the pneumatic plant, compiled to a SymbolicVectorSystem, to ``builder``.
 
@@ -335,35 +408,123 @@ def add_pneumatic_plant(
 
     Args:
         builder: where the plant goes.
-        parameters: the plant's constants (SI), fixed at build time.
+        parameters: the plant's constants (SI); ``simulation_step_s`` is not used (``step_s``).
         initial_state: where a fresh Context starts (``STATE_NAMES`` order), usually
             ``equilibrium_state`` at the starting currents.
-        step_s: the fixed integration step (s); the coil currents are sampled each step.
-        name: the system's name.
+        step_s: the fixed integration step (s): the system's update period; the coil currents
+            are sampled each step.
+        name: the system's name; ``{name}.parameters`` is the ParameterSource that holds the
+            constants (``COMPILED_PARAMETER_NAMES``), which ``set_pneumatic_parameters`` writes.
+        context_parameters: the fields of ``parameters`` (``PARAMETER_NAMES``) that a Context can
+            change; the others are numbers in the expressions. ``STEP_PARAMETERS`` makes every
+            constant of the step changeable.
 
-    The state is stored as its offset from ``initial_state`` (a SymbolicVectorSystem's default
-    state is zero); the ``state`` output gives it back in absolute terms.
+    Each constant a Context can change costs time at every step (a SymbolicVectorSystem copies a
+    table of its variables at each evaluation, and reads a variable where it would read a
+    number), hence the short default list; benchmarks/closed_loop.py measures both lists.
+
+    The state is stored as its offset from ``initial_state``, the state origin (a
+    SymbolicVectorSystem's default state is zero, so a fresh Context starts at rest). The origin
+    is a number in the expressions too: as a parameter it would cost as much as a dozen more
+    constants, since it enters every use of the state. So a start that matches other constants (a
+    heavier head rests lower) is written into the state by ``set_pneumatic_parameters``, with
+    them. The ``state`` output gives the state in absolute terms.
+
+    Raises:
+        ConfigError: ``context_parameters`` names a field that is not one of ``PARAMETER_NAMES``,
+            or ``simulation_step_s`` (the update period cannot change in a Context).
     """
-    initial_state = np.asarray(initial_state, dtype=float)
+    changeable = [n for n in PARAMETER_NAMES if n != "simulation_step_s"]
+    invalid = sorted(set(context_parameters) - set(changeable))
+    if invalid:
+        raise ConfigError(f"context_parameters {invalid}: expected some of {', '.join(changeable)}")
+    origin = np.asarray(initial_state, dtype=float)
+    # One variable per entry of the ParameterSource; only those of context parameters enter the
+    # expressions, the others name what it holds.
+    variables = [Variable(parameter_name) for parameter_name in COMPILED_PARAMETER_NAMES]
+    p = parameters_from_vector(
+        [
+            Expression(variable) if parameter_name in context_parameters else value
+            for (parameter_name, value), variable in zip(
+                _flat_fields(parameters), variables, strict=False
+            )
+        ]
+    )
     offset = MakeVectorVariable(len(STATE_NAMES), "x")
-    state = [initial_state[k] + offset[k] for k in range(len(STATE_NAMES))]
+    state = [origin[k] + offset[k] for k in range(len(STATE_NAMES))]
     inlet, outlet = Variable(INPUT_NAMES[0]), Variable(INPUT_NAMES[1])
     return add_named_symbolic_system(
         builder,
         name,
         inputs=[(INPUT_NAMES[0], [inlet]), (INPUT_NAMES[1], [outlet])],
-        outputs=[("head_height_m", [head_height_m(state, parameters)]), ("state", state)],
+        outputs=[("head_height_m", [head_height_m(state, p)]), ("state", state)],
         state=list(offset),
         dynamics=[
             next_value - start
             for next_value, start in zip(
-                semi_implicit_step(state, inlet, outlet, parameters, step_s),
-                initial_state,
-                strict=True,
+                semi_implicit_step(state, inlet, outlet, p, step_s), origin, strict=True
             )
         ],
         time_period=step_s,
+        parameters=list(zip(variables, compiled_parameter_vector(parameters, origin), strict=True)),
     )
 
 
 make_pneumatic_plant = diagram_form(add_pneumatic_plant)
+
+
+def _held_values(diagram: Diagram, context: Context, name: str) -> np.ndarray:
+    source = parameter_source(diagram, name)
+    return source.get_values(diagram.GetSubsystemContext(source, context))
+
+
+def pneumatic_parameters(
+    diagram: Diagram, context: Context, name: str = "pneumatic_plant"
+) -> PneumaticParameters:
+    """The constants that ``context`` holds for the compiled plant ``name``, a subsystem of
+    ``diagram`` (``context`` is ``diagram``'s).
+    """
+    return parameters_from_vector(_held_values(diagram, context, name)[: len(PARAMETER_NAMES)])
+
+
+def set_pneumatic_parameters(
+    diagram: Diagram,
+    context: Context,
+    parameters: PneumaticParameters,
+    initial_state=None,
+    name: str = "pneumatic_plant",
+) -> None:
+    """Writes new constants (a drawn head mass) into ``context`` and puts the plant at a start
+    that matches them.
+
+    Write them after ``SetDefaultContext`` or ``SetRandomContext``, which restore the constants
+    and the start the plant was built with.
+
+    Args:
+        diagram: a Diagram with the compiled plant ``name`` as a subsystem (the closed loop, or
+            ``make_pneumatic_plant``'s Diagram).
+        context: ``diagram``'s Context.
+        parameters: the new constants; only the plant's context parameters may differ from the
+            ones it was built with.
+        initial_state: the plant's state from now on (``STATE_NAMES`` order); by default at rest
+            at the coil currents the plant was built to start at (the spools of its state origin).
+        name: the compiled plant's name.
+
+    Raises:
+        ConfigError: ``parameters`` cannot describe a physical plant.
+        ConfigError: ``parameters`` changes a constant that is a number in the plant's
+            expressions, or ``initial_state`` has the wrong size.
+    """
+    validate_pneumatic_parameters(parameters)
+    origin = _held_values(diagram, context, name)[len(PARAMETER_NAMES) :]
+    if initial_state is None:
+        initial_state = equilibrium_state(parameters, origin[INLET_SPOOL], origin[OUTLET_SPOOL])
+    initial_state = np.asarray(initial_state, dtype=float).ravel()
+    _check_size("initial_state", initial_state, STATE_NAMES)
+    source = parameter_source(diagram, name)
+    source.set_values(
+        diagram.GetMutableSubsystemContext(source, context),
+        compiled_parameter_vector(parameters, origin),
+    )
+    plant = diagram.GetSubsystemByName(name)
+    diagram.GetMutableSubsystemContext(plant, context).SetDiscreteState(initial_state - origin)

@@ -5,9 +5,10 @@ The figures: the bare closed-loop diagram (no recording) and the whole `maskless
 included).
 
 Beside them: the bare diagram's speed when built for a sweep (``SWEPT_PARAMETERS`` in the
-Context) and with every constant of the pneumatic plant in the Context, and a head-mass sweep (24 heads of 4-6 kg,
-one Monte Carlo trial's length each) run by writing each head into one built diagram's Context
-(``set_plant_parameters``) and by building a diagram per head, as a sweep did before. A rebuilt
+Context) and with every constant of the pneumatic plant in the Context, and a head-mass sweep
+(24 heads of 4-6 kg, one Monte Carlo trial's length each) run by writing each head into one built
+diagram's Context (``set_plant_parameters``) and by building a diagram per head, as a sweep did
+before. A rebuilt
 loop also moves its reference and its filters' start to the new head's rest; the written one keeps
 them, so the two sweeps simulate the same time but not the same trajectories.
 

@@ -444,14 +444,14 @@ def logged_signals(
 def set_plant_parameters(
     diagram: Diagram, context: Context, parameters: PneumaticParameters
 ) -> None:
-    """Writes a pneumatic plant's constants (a drawn head mass) into a built loop's Context, with
-    the plant at rest at the loop's starting valve currents.
+    """Writes a pneumatic plant's constants (a drawn head mass) into a built loop's Context.
 
-    A sweep over plants then simulates one built Diagram instead of building one per draw. Only
-    the plant changes: the reference, and the start height the filters and the controller begin
-    from, stay those the loop was built for (a heavier head starts lower, and the loop first
-    brings it to the reference). Write after ``SetRandomContext`` or ``SetDefaultContext``, which
-    restore the constants the loop was built with.
+    The plant then rests at the loop's starting valve currents. A sweep over plants simulates one
+    built Diagram instead of building one per draw. Only the plant changes: the reference, and
+    the start height the filters and the controller begin from, stay those the loop was built for
+    (a heavier head starts lower, and the loop first brings it to the reference). Write after
+    ``SetRandomContext`` or ``SetDefaultContext``, which restore the constants the loop was built
+    with.
 
     Args:
         diagram: a closed loop's Diagram (``build_closed_loop``) with the pneumatic plant.

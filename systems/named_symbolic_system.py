@@ -85,8 +85,10 @@ def as_diagram(name: str, add: Callable[[DiagramBuilder], PortMap]) -> Diagram:
 
 
 def diagram_form(add: Callable[..., PortMap]) -> Callable[..., Diagram]:
-    """The ``make_*`` form of an ``add_*`` component: it takes the same arguments except the
-    builder and returns a Diagram named by the component's ``name`` argument.
+    """The ``make_*`` form of an ``add_*`` component.
+
+    It takes the same arguments except the builder and returns a Diagram named by the component's
+    ``name`` argument.
     """
     signature = inspect.signature(add)
 
@@ -224,6 +226,7 @@ class ParameterSource(ConstantVectorSource):
         parameters: Sequence[tuple[Variable, float]],
         constants: Sequence[tuple[Variable, Expression]],
     ):
+        """Holds ``parameters`` at their defaults and outputs ``constants`` computed from them."""
         self._variables = [variable for variable, _ in parameters]
         self._defaults = np.array([value for _, value in parameters], dtype=float)
         self._expressions = np.array([expression for _, expression in constants], dtype=object)
@@ -241,8 +244,7 @@ class ParameterSource(ConstantVectorSource):
         return context.get_numeric_parameter(self._parameter_index).CopyToVector()
 
     def set_values(self, context: Context, values) -> None:
-        """Writes the parameters (``names`` order) and the constants computed from them into
-        ``context``.
+        """Writes the parameters (``names`` order) and the constants computed from them.
 
         Raises:
             ConfigError: ``values`` does not have one entry per name, or changes a fixed one.
@@ -277,15 +279,18 @@ class ParameterSource(ConstantVectorSource):
 
 
 def parameter_source(diagram: Diagram, name: str) -> ParameterSource:
-    """The ParameterSource of the symbolic system ``name``, a subsystem of ``diagram`` added with
-    ``parameters``; its Context is ``diagram.GetMutableSubsystemContext(source, context)``.
+    """The ParameterSource of the symbolic system ``name`` (added with ``parameters``).
+
+    ``name`` is a subsystem of ``diagram``; the source's Context is
+    ``diagram.GetMutableSubsystemContext(source, context)``.
     """
     return diagram.GetSubsystemByName(f"{name}.parameters")
 
 
 class _ConstantSplitter:
-    """Replaces each largest part of an expression that depends on the parameters alone by a new
-    variable, and keeps (variable, part) in ``constants``; one variable per distinct part.
+    """Replaces each largest parameters-only part of an expression by a variable of its own.
+
+    It keeps (variable, part) in ``constants``, one variable per distinct part.
 
     Each variable costs the system time at every evaluation, so a part's number factor stays in
     the expression: ``-0.5 * w`` and ``0.5 * w`` share the variable of ``w``.

@@ -1,3 +1,5 @@
+"""Context parameters of a SymbolicVectorSystem: defaults, writes and refusals, checked by hand."""
+
 import numpy as np
 import pytest
 from pydrake.symbolic import Variable

@@ -1,3 +1,5 @@
+"""The pneumatic plant's forms against the physics, and a written head against a rebuilt one."""
+
 import dataclasses
 
 import numpy as np
@@ -138,8 +140,10 @@ SLEWS = [((0.0, 0.0), (0.165, 0.0)), ((0.165, 0.0), (0.0, 0.165))]
 
 
 def slew_error_m(p, head_mass_kg, start, step, step_divisor):
-    """Max |compiled - continuous| head height over a 20 s full-valve slew, logged every step of
-    the compiled plant; the continuous run (Drake RK3, target accuracy 1e-8) is cached.
+    """Max |compiled - continuous| head height over a 20 s full-valve slew.
+
+    Logged every step of the compiled plant; the continuous run (Drake RK3, target accuracy 1e-8)
+    is cached.
     """
     q = dataclasses.replace(p, head_mass_kg=head_mass_kg)
     state = equilibrium_state(q, *start)
@@ -216,9 +220,11 @@ def test_new_parameters_in_a_used_context_take_effect(p):
 
 
 def slew_with_parameters(built_with, built_start, context_parameters, written=None):
-    """Head heights (every step) of a compiled plant built with ``built_with`` at ``built_start``
-    and run with ``written`` written into its Context: rest at 0.11 A on the inlet, then a slew
-    on the inlet to 0.165 A and on the outlet to 0.1 A.
+    """Head heights (every step) of a compiled plant built with one head and run with another.
+
+    Built with ``built_with`` at ``built_start`` and run with ``written`` written into its
+    Context: rest at 0.11 A on the inlet, then a slew on the inlet to 0.165 A and on the outlet
+    to 0.1 A.
     """
     builder = DiagramBuilder()
     plant = add_pneumatic_plant(

@@ -78,59 +78,60 @@ def load_pneumatic_parameters() -> PneumaticParameters:
 
 def validate_pneumatic_parameters(p: PneumaticParameters, prefix: str = "pneumatic") -> None:
     """Raises ConfigError naming the first field that cannot describe a physical plant."""
+    for holds, name, value, expected in _parameter_checks(p):
+        if not holds:
+            raise ConfigError(f"{prefix}.{name} = {value}: expected {expected}")
 
-    def fail(name, value, expected):
-        raise ConfigError(f"{prefix}.{name} = {value}: expected {expected}")
 
+def _parameter_checks(p: PneumaticParameters):
+    """(holds, field, value, expected) of each check, in the order they are reported.
+
+    A generator, so a later check is made only once the earlier ones held.
+    """
     nonnegative = {"hysteresis_fraction", "damping_n_s_m"}
     for name, value in _flat_fields(p):
         leaf = name.rsplit(".", 1)[-1]
-        if leaf == "min_lift_m":
-            continue
-        if not math.isfinite(value) or value < 0 or (value == 0 and leaf not in nonnegative):
-            fail(name, value, "a positive, finite number")
+        if leaf != "min_lift_m":
+            positive = math.isfinite(value) and (value > 0 or (value == 0 and leaf in nonnegative))
+            yield positive, name, value, "a positive, finite number"
     for valve_name in ("inlet", "outlet"):
         valve: ValveParameters = getattr(p, valve_name)
-        if not valve.saturation_current_a > valve.starting_current_a:
-            fail(
-                f"{valve_name}.saturation_current_a",
-                valve.saturation_current_a,
-                f"above {valve_name}.starting_current_a ({valve.starting_current_a})",
-            )
-        if not valve.hysteresis_fraction <= 0.5:
-            fail(f"{valve_name}.hysteresis_fraction", valve.hysteresis_fraction, "<= 0.5")
-        if not 0 < valve.critical_pressure_ratio < 1:
-            fail(
-                f"{valve_name}.critical_pressure_ratio", valve.critical_pressure_ratio, "in (0, 1)"
-            )
-    if not 0 < p.leak_critical_pressure_ratio < 1:
-        fail("leak_critical_pressure_ratio", p.leak_critical_pressure_ratio, "in (0, 1)")
-    if (
-        not max(
-            p.inlet.critical_pressure_ratio,
-            p.outlet.critical_pressure_ratio,
-            p.leak_critical_pressure_ratio,
+        yield (
+            valve.saturation_current_a > valve.starting_current_a,
+            f"{valve_name}.saturation_current_a",
+            valve.saturation_current_a,
+            f"above {valve_name}.starting_current_a ({valve.starting_current_a})",
         )
-        < p.laminar_pressure_ratio
-        < 1
-    ):
-        fail(
-            "laminar_pressure_ratio",
-            p.laminar_pressure_ratio,
-            "above every critical pressure ratio and below 1",
-        )
-    if not p.vacuum_absolute_pressure_pa < p.atmospheric_pressure_pa:
-        fail(
-            "vacuum_absolute_pressure_pa",
-            p.vacuum_absolute_pressure_pa,
-            f"below atmospheric_pressure_pa ({p.atmospheric_pressure_pa})",
-        )
-    if not 1.0 <= p.polytropic_exponent <= 1.4:
-        fail("polytropic_exponent", p.polytropic_exponent, "in [1, 1.4] (isothermal..adiabatic)")
-    if not p.min_lift_m < p.max_lift_m:
-        fail("min_lift_m", p.min_lift_m, f"below max_lift_m ({p.max_lift_m})")
-    if not p.rest_volume_m3 + p.volume_per_lift_m2 * p.min_lift_m > 0:
-        fail("rest_volume_m3", p.rest_volume_m3, "a positive volume down to min_lift_m")
+        fraction = valve.hysteresis_fraction
+        yield fraction <= 0.5, f"{valve_name}.hysteresis_fraction", fraction, "<= 0.5"
+        ratio = valve.critical_pressure_ratio
+        yield 0 < ratio < 1, f"{valve_name}.critical_pressure_ratio", ratio, "in (0, 1)"
+    leak = p.leak_critical_pressure_ratio
+    yield 0 < leak < 1, "leak_critical_pressure_ratio", leak, "in (0, 1)"
+    critical = max(p.inlet.critical_pressure_ratio, p.outlet.critical_pressure_ratio, leak)
+    yield (
+        critical < p.laminar_pressure_ratio < 1,
+        "laminar_pressure_ratio",
+        p.laminar_pressure_ratio,
+        "above every critical pressure ratio and below 1",
+    )
+    yield (
+        p.vacuum_absolute_pressure_pa < p.atmospheric_pressure_pa,
+        "vacuum_absolute_pressure_pa",
+        p.vacuum_absolute_pressure_pa,
+        f"below atmospheric_pressure_pa ({p.atmospheric_pressure_pa})",
+    )
+    exponent = p.polytropic_exponent
+    adiabatic = "in [1, 1.4] (isothermal..adiabatic)"
+    yield 1.0 <= exponent <= 1.4, "polytropic_exponent", exponent, adiabatic
+    below_max = f"below max_lift_m ({p.max_lift_m})"
+    yield p.min_lift_m < p.max_lift_m, "min_lift_m", p.min_lift_m, below_max
+    yield (
+        p.rest_volume_m3 + p.volume_per_lift_m2 * p.min_lift_m > 0,
+        "rest_volume_m3",
+        p.rest_volume_m3,
+        "a positive volume down to min_lift_m",
+    )
 
 
 def _nested_class(f: dataclasses.Field):
@@ -159,9 +160,7 @@ def _flat_fields(p: PneumaticParameters):
 
 
 def parameter_vector(p: PneumaticParameters) -> np.ndarray:
-    """The parameters as one vector, in ``PARAMETER_NAMES`` order (the plant's numeric
-    parameter).
-    """
+    """The parameters as one vector in ``PARAMETER_NAMES`` order (the plant's numeric parameter)."""
     return np.array([value for _, value in _flat_fields(p)], dtype=float)
 
 
@@ -229,6 +228,8 @@ def equilibrium_state(p: PneumaticParameters, inlet_current_a: float, outlet_cur
 
 @TemplateSystem.define("PneumaticPlant_")
 def PneumaticPlant_(T):  # noqa: N802 (Drake template naming)
+    """The pneumatic plant's LeafSystem class for the scalar type ``T``."""
+
     class Impl(LeafSystem_[T]):
         """The pneumatic plant, templated on the scalar type.
 
@@ -374,8 +375,9 @@ COMPILED_PARAMETER_NAMES = (*PARAMETER_NAMES, *STATE_ORIGIN_NAMES)
 
 
 def compiled_parameter_vector(parameters: PneumaticParameters, state_origin) -> np.ndarray:
-    """What a compiled plant's ParameterSource holds: ``parameter_vector(parameters)``, then the
-    state its state is stored relative to (``COMPILED_PARAMETER_NAMES`` order).
+    """What a compiled plant's ParameterSource holds (``COMPILED_PARAMETER_NAMES`` order).
+
+    That is ``parameter_vector(parameters)``, then the state its state is stored relative to.
 
     Raises:
         ConfigError: ``state_origin`` does not have one entry per name of ``STATE_NAMES``.
@@ -481,9 +483,7 @@ def _held_values(diagram: Diagram, context: Context, name: str) -> np.ndarray:
 def pneumatic_parameters(
     diagram: Diagram, context: Context, name: str = "pneumatic_plant"
 ) -> PneumaticParameters:
-    """The constants that ``context`` holds for the compiled plant ``name``, a subsystem of
-    ``diagram`` (``context`` is ``diagram``'s).
-    """
+    """The constants ``context`` (``diagram``'s) holds for the compiled plant ``name`` in it."""
     return parameters_from_vector(_held_values(diagram, context, name)[: len(PARAMETER_NAMES)])
 
 
@@ -494,8 +494,7 @@ def set_pneumatic_parameters(
     initial_state=None,
     name: str = "pneumatic_plant",
 ) -> None:
-    """Writes new constants (a drawn head mass) into ``context`` and puts the plant at a start
-    that matches them.
+    """Writes new constants (a drawn head mass) into ``context``, and a start to match them.
 
     Write them after ``SetDefaultContext`` or ``SetRandomContext``, which restore the constants
     and the start the plant was built with.
@@ -511,9 +510,8 @@ def set_pneumatic_parameters(
         name: the compiled plant's name.
 
     Raises:
-        ConfigError: ``parameters`` cannot describe a physical plant.
-        ConfigError: ``parameters`` changes a constant that is a number in the plant's
-            expressions, or ``initial_state`` has the wrong size.
+        ConfigError: ``parameters`` cannot describe a physical plant, changes a constant that is
+            a number in the plant's expressions, or ``initial_state`` has the wrong size.
     """
     validate_pneumatic_parameters(parameters)
     origin = _held_values(diagram, context, name)[len(PARAMETER_NAMES) :]

@@ -35,6 +35,7 @@ class FitMetrics:
     parameters: int
 
     def as_dict(self) -> dict:
+        """The figures as a dict keyed by the attribute names."""
         return asdict(self)
 
 
@@ -48,8 +49,9 @@ def fit_percent(y: np.ndarray, y_hat: np.ndarray) -> float:
 
 
 def evaluate_fit(y: np.ndarray, y_hat: np.ndarray, parameters: int) -> FitMetrics:
-    """All figures for the prediction ``y_hat`` of ``y`` by a model with ``parameters`` estimated
-    parameters.
+    """All figures for the prediction ``y_hat`` of ``y``.
+
+    The model that made it has ``parameters`` estimated parameters (d in FPE and the criteria).
     """
     y, y_hat = np.asarray(y, float), np.asarray(y_hat, float)
     if y.shape != y_hat.shape or y.ndim != 1 or y.size == 0:

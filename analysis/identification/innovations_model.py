@@ -1,5 +1,6 @@
-"""The polynomial parameterisation identification searches over: a single-input, single-output
-innovations-form model (Eq. 25) in observer canonical form.
+"""The single-input, single-output innovations-form model (Eq. 25) identification searches over.
+
+Its polynomial parameterisation is the observer canonical form:
 
     x(k+1) = A x(k) + B u(k) + K e(k),   y(k) = C x(k) + e(k)
     A = [[-a1, 1, 0, ...], [-a2, 0, 1, ...], ..., [-an, 0, ..., 0]],  C = [1, 0, ..., 0],  D = 0
@@ -44,6 +45,7 @@ class InnovationsModel:
 
     @property
     def order(self) -> int:
+        """n, the number of states (and of coefficients in each of a, b and k)."""
         return self.a.size
 
     @property
@@ -52,8 +54,9 @@ class InnovationsModel:
         return self.a + self.k
 
     def linear_model(self, innovations_variance: float | None = None) -> LinearModel:
-        """The model as a ``LinearModel`` (the observer canonical A, B, C, D = 0 and K) of the
-        detrended record's deviations, in its units.
+        """The model as a ``LinearModel``: the observer canonical A, B, C, D = 0 and K.
+
+        It models the detrended record's deviations, in the record's units.
 
         Args:
             innovations_variance: σ² of the one-step prediction errors, when known.
@@ -79,8 +82,9 @@ class InnovationsModel:
         return np.roots(np.concatenate([[1.0], self.c]))
 
     def predict(self, u: np.ndarray, y: np.ndarray, initial_state=None) -> np.ndarray:
-        """One-step-ahead prediction ŷ(k | k-1) from x(0) = ``initial_state`` (default: the
-        model's own).
+        """One-step-ahead prediction ŷ(k | k-1) from x(0) = ``initial_state``.
+
+        Without ``initial_state`` it starts from the model's own x(0).
         """
         x0 = self.initial_state if initial_state is None else np.asarray(initial_state, float)
         denominator = np.concatenate([[1.0], self.c])
@@ -120,11 +124,13 @@ class InnovationsModel:
         return self.simulate(np.zeros(samples), initial_state)
 
     def initial_state_for(self, u: np.ndarray, y: np.ndarray, horizon: str) -> np.ndarray:
-        """The x(0) that best explains another record, by linear least squares (the response is
-        linear in x(0)), as MATLAB's ``compare`` estimates it.
+        """The x(0) that best explains another record, as MATLAB's ``compare`` estimates it.
+
+        The response is linear in x(0), so x(0) comes from linear least squares.
 
         Args:
-            u, y: the record.
+            u: the record's input, detrended, in the units of the model's input.
+            y: the record's output, detrended, in the units of the model's output; as long as u.
             horizon: "one_step" fits the one-step prediction, "simulation" the simulated output.
         """
         zeros, no_signal = np.zeros(self.order), np.zeros_like(y, dtype=float)

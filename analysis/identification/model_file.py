@@ -34,8 +34,10 @@ def model_file_contents(
     trend_slopes_per_sample: tuple[float, float] | None,
     verdict: str,
 ) -> dict:
-    """The YAML mapping of one fitted model, with the record's offsets and units (the model is
-    of the detrended record's deviations, in the record's units; the variance in output_unit²).
+    """The YAML mapping of one fitted model, with the record's offsets and units.
+
+    The model is of the detrended record's deviations, in the record's units; the variance is in
+    output_unit².
     """
     model = fitted.model
     contents = {
@@ -57,9 +59,11 @@ def model_file_contents(
 
 
 def load_identified_model(path: str | Path) -> LinearModel:
-    """Reads a model file into SI: the state keeps the output's scale, so B and D scale by
-    (output unit in SI) / (input unit in SI), K stays, the innovations variance scales by the
-    output's square and the offsets become the operating point.
+    """Reads a model file into SI, as the ``LinearModel`` the designs and plants use.
+
+    The state keeps the output's scale, so B and D scale by (output unit in SI) / (input unit in
+    SI), K stays, the innovations variance scales by the output's square and the offsets become
+    the operating point.
 
     Raises:
         ModelError: a missing field, a unit other than m, mm, A or mA, or matrices of the wrong

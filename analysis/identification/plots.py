@@ -20,8 +20,9 @@ def _figure(width, height):
 def plot_compare(
     path: str | Path, fitted: FittedModel, parts: list[Part], sample_period_s: float, unit: str
 ) -> Path:
-    """Measured output against the one-step prediction and the simulation, on each part, with the
-    same initial states as the report's figures.
+    """Measured output against the one-step prediction and the simulation, on each part.
+
+    The prediction and the simulation start from the same initial states as the report's figures.
     """
     model = fitted.polynomials
     figure = _figure(11, 3.2 * len(parts))
@@ -51,8 +52,9 @@ def plot_compare(
 
 
 def plot_residuals(path: str | Path, fitted: FittedModel, parts: list[Part]) -> Path:
-    """For each part, the one-step residuals' autocorrelation and their cross-correlation with
-    the input, each with its 99 % band.
+    """For each part, the one-step residuals' autocorrelation and cross-correlation with the input.
+
+    Each is drawn with its 99 % band.
     """
     model = fitted.polynomials
     figure = _figure(12, 3.0 * len(parts))

@@ -54,9 +54,10 @@ def estimate_pem(
     """The innovations-form model of ``order`` that minimises the one-step prediction error.
 
     Args:
-        u, y: the record (input and output, detrended), 1-D, same length.
+        u: the record's input, detrended, 1-D.
+        y: the record's output, detrended, 1-D, as long as u.
         order: n, the state dimension (= the ARMAX orders na = nb = nc, nk = 1).
-        sample_period_s: Ts.
+        sample_period_s: Ts (s).
         estimate_initial_state: estimate x(0) too (MATLAB's InitialState 'estimate'); otherwise
             x(0) = 0.
         with_input: False fits the same structure with b = 0 (ARMA), the baseline that shows
@@ -101,8 +102,9 @@ def estimate_noise_model(
     estimate_initial_state: bool = True,
     progress: Callable[[int, float], None] | None = None,
 ) -> InnovationsModel:
-    """``model`` with its innovations gain K (and x(0) when asked) fitted by prediction error and
-    its dynamics A, B held: how a subspace fit gets its noise model.
+    """``model`` with its innovations gain K (and x(0) when asked) fitted by prediction error.
+
+    Its dynamics A, B are held: this is how a subspace fit gets its noise model.
     """
     _check_record(u, y, model.order)
     free = ["k", "initial_state"] if estimate_initial_state else ["k"]
@@ -146,8 +148,9 @@ def _minimise_prediction_error(u, y, start: InnovationsModel, free: list[str], p
 
 
 def estimate_ar(y: np.ndarray, order: int, sample_period_s: float) -> InnovationsModel:
-    """AR(n) by least squares, y(k) + a1 y(k-1) + ... = e(k): ARX without its input, the baseline
-    an ARX model must beat.
+    """AR(n) by least squares, y(k) + a1 y(k-1) + ... = e(k): ARX without its input.
+
+    It is the baseline an ARX model must beat.
     """
     return replace(estimate_arx(np.zeros_like(y), y, order, sample_period_s), b=np.zeros(order))
 
@@ -155,8 +158,9 @@ def estimate_ar(y: np.ndarray, order: int, sample_period_s: float) -> Innovation
 def parameter_count(
     order: int, *, with_input: bool, with_noise_model: bool, estimated_initial_state: bool
 ) -> int:
-    """d: the free parameters of a fit, n each for a, b (with input), k (with a noise model; ARX
-    has none) and x(0) (when estimated).
+    """d, the free parameters of a fit: n each for a, b, k and x(0) where the fit has them.
+
+    b counts with an input, k with a noise model (ARX has none) and x(0) when it is estimated.
     """
     return order * (1 + with_input + with_noise_model + estimated_initial_state)
 

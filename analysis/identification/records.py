@@ -26,25 +26,8 @@ def read_csv_signal(path: str | Path, column: str | None = None) -> np.ndarray:
     path = Path(path)
     if not path.is_file():
         raise MissingFileError(f"record not found: {path}")
-    try:
-        with open(path, newline="") as stream:
-            rows = list(csv.reader(stream))
-    except UnicodeDecodeError as error:
-        raise RecordError(
-            f"{path}: not a text file ({error.reason} at byte {error.start})"
-        ) from None
-    first_data_line = 1
-    index = 0
-    if column is not None:
-        if not rows:
-            raise RecordError(f"{path}: empty file, expected a table with column {column!r}")
-        header = [name.strip() for name in rows[0]]
-        if column in header:
-            index, first_data_line = header.index(column), 2
-        elif column.isdigit():
-            index = int(column)
-        else:
-            raise RecordError(f"{path}: no column {column!r}; the header has {header}")
+    rows = _read_rows(path)
+    index, first_data_line = _column_index(path, rows, column)
     values, blank_line = [], None
     for line_number, row in enumerate(rows[first_data_line - 1 :], start=first_data_line):
         if not row or all(not cell.strip() for cell in row):
@@ -55,24 +38,63 @@ def read_csv_signal(path: str | Path, column: str | None = None) -> np.ndarray:
                 f"{path}:{blank_line}: blank line inside the record (it would shift every later "
                 "sample against the other signal)"
             )
-        if column is None and len(row) > 1:
-            raise RecordError(
-                f"{path}:{line_number}: {len(row)} columns; choose one with --input-column or "
-                "--output-column"
-            )
-        if index >= len(row):
-            raise RecordError(f"{path}:{line_number}: has {len(row)} columns, no column {index}")
-        text = row[index].strip()
-        try:
-            value = float(text)
-        except ValueError:
-            raise RecordError(f"{path}:{line_number}: {text!r} is not a number") from None
-        if not math.isfinite(value):
-            raise RecordError(f"{path}:{line_number}: {text!r} is not a finite number")
-        values.append(value)
+        values.append(_parse_value(path, line_number, row, index, column))
     if not values:
         raise RecordError(f"{path}: no values")
     return np.array(values)
+
+
+def _read_rows(path: Path) -> list[list[str]]:
+    """Every row of the CSV file ``path``; a file that is not text is a RecordError."""
+    try:
+        with open(path, newline="") as stream:
+            return list(csv.reader(stream))
+    except UnicodeDecodeError as error:
+        raise RecordError(
+            f"{path}: not a text file ({error.reason} at byte {error.start})"
+        ) from None
+
+
+def _column_index(path: Path, rows: list[list[str]], column: str | None) -> tuple[int, int]:
+    """(0-based index of ``column``, 1-based line of its first value) in the CSV ``rows``.
+
+    A header name skips the header line; an index as text, or None (one value per line), reads
+    from line 1.
+    """
+    if column is None:
+        return 0, 1
+    if not rows:
+        raise RecordError(f"{path}: empty file, expected a table with column {column!r}")
+    header = [name.strip() for name in rows[0]]
+    if column in header:
+        return header.index(column), 2
+    if column.isdigit():
+        return int(column), 1
+    raise RecordError(f"{path}: no column {column!r}; the header has {header}")
+
+
+def _parse_value(
+    path: Path, line_number: int, row: list[str], index: int, column: str | None
+) -> float:
+    """The finite number in column ``index`` of the non-blank CSV ``row`` at ``line_number``.
+
+    With ``column`` None (one value per line) a row of several columns is refused.
+    """
+    if column is None and len(row) > 1:
+        raise RecordError(
+            f"{path}:{line_number}: {len(row)} columns; choose one with --input-column or "
+            "--output-column"
+        )
+    if index >= len(row):
+        raise RecordError(f"{path}:{line_number}: has {len(row)} columns, no column {index}")
+    text = row[index].strip()
+    try:
+        value = float(text)
+    except ValueError:
+        raise RecordError(f"{path}:{line_number}: {text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise RecordError(f"{path}:{line_number}: {text!r} is not a finite number")
+    return value
 
 
 def read_mcap_signals(
@@ -156,8 +178,10 @@ class Detrended:
 
 
 def detrend(u: np.ndarray, y: np.ndarray, mode: str) -> Detrended:
-    """Removes the whole record's mean ("mean", the authors' preprocessing), its least-squares line
-    ("linear") or nothing ("none").
+    """Removes the record's offsets as ``mode`` says: its mean, its trend line, or nothing.
+
+    "mean" removes the whole record's mean (the authors' preprocessing), "linear" its least-squares
+    line and "none" nothing.
     """
     if mode == "none":
         return Detrended(u, y, 0.0, 0.0)

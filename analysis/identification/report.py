@@ -81,8 +81,9 @@ def _fitted_model(
     parameters: int,
     details: dict | None = None,
 ) -> FittedModel:
-    """``polynomials`` fitted on ``estimation`` as a FittedModel, its model carrying the variance
-    of the one-step innovations there.
+    """``polynomials`` fitted on ``estimation`` as a FittedModel.
+
+    Its model carries the variance of the one-step innovations on ``estimation``.
     """
     # Every estimator leaves x(0) at zero when it does not estimate it, so the model's own x(0) is
     # the one the estimation part's one-step figures use.
@@ -105,9 +106,11 @@ def fit(
     estimate_initial_state: bool = True,
     progress: Callable[[int, float], None] | None = None,
 ) -> FittedModel:
-    """Fits one model: "pem" (innovations-form state space) and "armax" (the same model set,
-    ARMAX(n, n, n)) by prediction error, "arx" by least squares (zero initial state), "n4sid" by
-    subspace identification (PO-MOESP).
+    """Fits one model of ``order`` to ``part`` by ``method``.
+
+    "pem" (innovations-form state space) and "armax" (the same model set, ARMAX(n, n, n)) fit by
+    prediction error, "arx" by least squares (zero initial state), "n4sid" by subspace
+    identification (PO-MOESP).
     """
     count = parameter_count(
         order,
@@ -160,9 +163,11 @@ def initial_state_for_part(fitted: FittedModel, part: Part, estimation: Part, ho
 def part_figures(
     fitted: FittedModel, part: Part, estimation: Part, k_step: int | None = None
 ) -> dict:
-    """fit_percent_1step, fit_percent_sim, mse, fpe, naic, aic, bic and n of one part, and
-    fit_percent_{k}step when ``k_step`` is given; the error figures are those of the one-step
-    prediction. Also the residuals' whiteness (share of lags outside the 99 % bands).
+    """The figures of one part: its fits, its error figures and its residuals' whiteness.
+
+    fit_percent_1step, fit_percent_sim, mse, fpe, naic, aic, bic and n, and fit_percent_{k}step
+    when ``k_step`` is given; the error figures are those of the one-step prediction. The
+    whiteness is the share of lags outside the 99 % bands.
     """
     model = fitted.polynomials
     x0 = initial_state_for_part(fitted, part, estimation, "one_step")
@@ -191,8 +196,10 @@ def part_figures(
 
 
 def baseline_figures(fitted: FittedModel, parts: list[Part], progress=None) -> dict:
-    """The same structure without input (one-step fit) and the initial state's free response
-    (simulation fit), per part.
+    """Per part, the one-step fit without input and the simulation fit of the free response.
+
+    The first is the same structure fitted without input, the second the initial state's free
+    response.
     """
     estimation = parts[0]
     model = fitted.polynomials
@@ -254,8 +261,9 @@ EXPLAINS_VERDICT = "The input explains the output"
 
 
 def verdict(figures: dict, baselines: dict, gains: dict, part_name: str, stable: bool) -> str:
-    """Whether the input explains the output, in plain words, from one part's figures and the
-    model's ``margins`` over the baselines on that part.
+    """Whether the input explains the output, in plain words, judged on one part.
+
+    The judgement uses that part's figures and the model's ``margins`` over the baselines on it.
 
     "explains the output": the input-driven simulation fits at least 50 % and beats the initial
     state's free response (or zero) by 10 points. "essentially nothing": dropping the input costs
@@ -294,6 +302,15 @@ def identify(
     """Fits each order and builds the report (the JSON of `maskless identify`).
 
     Args:
+        method: the estimator: "pem", "armax", "arx" or "n4sid" (see ``fit``).
+        estimation: the part the models are fitted on.
+        validation: the part they are judged on: the report's verdict is that of the order with
+            the best one-step fit there.
+        orders: the model orders n, one model each.
+        sample_period_s: Ts (s).
+        estimate_initial_state: estimate x(0) too; "arx" always keeps x(0) = 0.
+        progress: called as progress(evaluations, cost) during the prediction-error searches.
+        k_step: k for the additional k-step-ahead fit; None for none.
         overlap: the validation part shares samples with the estimation part; the report and
             the verdict then say that the validation figures are not a holdout.
     """

@@ -680,9 +680,7 @@ class _StrictBytesIO(io.BytesIO):
 _READ_ERRORS = (McapError, ValueError, EOFError, struct.error)
 
 
-def read_recording(
-    path: str | PathLike[str], topics: Collection[str] | None = None
-) -> Recording:
+def read_recording(path: str | PathLike[str], topics: Collection[str] | None = None) -> Recording:
     """Reads a recording, recovering what it can from a cut-off file.
 
     The file is read front to back with a streaming reader (no index or footer needed). At the

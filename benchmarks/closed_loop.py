@@ -44,9 +44,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from machine import machine_description  # noqa: E402
 
 
-def core_real_time_factor(
-    duration_s: float, repeats: int, plant_context_parameters=()
-) -> float:
+def core_real_time_factor(duration_s: float, repeats: int, plant_context_parameters=()) -> float:
     """Best of ``repeats``: the diagram alone, built once, simulated from a fresh context."""
     config = load_scenario()
     loop = build_closed_loop(

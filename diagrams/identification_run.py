@@ -46,8 +46,6 @@ _FIELD_UNITS = {"_a": "A", "_m": "m"}
 _TS_TOLERANCE = 0.01
 
 
-
-
 @dataclass(frozen=True)
 class IdentificationRequest:
     """What to identify, from which record; checked when made.
@@ -206,9 +204,7 @@ def read_record(
         units = (_field_unit(input_field), _field_unit(output_field))
         return u[input_index], y[output_index], units
     if request.output is None:
-        raise RecordError(
-            f"{label('output')} is required when {label('input')} is a CSV file"
-        )
+        raise RecordError(f"{label('output')} is required when {label('input')} is a CSV file")
     u = read_csv_signal(request.input, request.input_column)
     y = read_csv_signal(request.output, request.output_column)
     if u.size != y.size:

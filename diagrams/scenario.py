@@ -131,9 +131,7 @@ def controller_from_shorthand(text: str) -> Controller:
         return PaperLqg()
     if name == "offset-free-lqg" and (not separator or path):
         return OffsetFreeLqg(design_model_file=path)
-    raise ConfigError(
-        f"--controller {text!r}: expected one of {', '.join(CONTROLLER_SHORTHANDS)}"
-    )
+    raise ConfigError(f"--controller {text!r}: expected one of {', '.join(CONTROLLER_SHORTHANDS)}")
 
 
 def shorthand(choice: Plant | Controller) -> str:
@@ -393,9 +391,7 @@ def _validate_cameras(config: Scenario) -> None:
     for name, camera in config.cameras.items():
         # A camera's name is one segment of its recording topics and of its diagram ports.
         if not name.isidentifier():
-            raise ConfigError(
-                f"cameras.{name}: expected a name of letters, digits and underscores"
-            )
+            raise ConfigError(f"cameras.{name}: expected a name of letters, digits and underscores")
         validate_sensor_config(f"cameras.{name}", camera)
 
 

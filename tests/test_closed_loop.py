@@ -106,9 +106,7 @@ def test_recording_read_back_with_the_mcap_reader(short_run, tmp_path):
     period_s = short_run.closed_loop.model.sample_period_s
     duration_s = short_run.scenario.duration_s
     assert counts["/plant/head_height"] == pytest.approx(duration_s / period_s, abs=2)
-    assert counts["/sensors/kinect_v1/measurement"] == pytest.approx(
-        duration_s * 15, abs=2
-    )
+    assert counts["/sensors/kinect_v1/measurement"] == pytest.approx(duration_s * 15, abs=2)
 
 
 def test_fused_messages_are_eq_10_of_the_local_estimates_with_the_same_stamp(short_run, tmp_path):

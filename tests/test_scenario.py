@@ -140,19 +140,36 @@ def test_a_tagged_identified_plant_runs_that_model(tmp_path):
 @pytest.mark.parametrize(
     "text, message",
     [
-        ("plant: !IdentifedPlant {model_file: m.yaml}\n", r"'plant' has the tag !IdentifedPlant; "
-         r"expected one of !PneumaticPlant, !PaperPlant, !IdentifiedPlant"),
-        ("plant: identified:m.yaml\n", r"field 'plant' = 'identified:m.yaml': expected a mapping "
-         r"tagged with one of"),
-        ("plant: !IdentifiedPlant {model: m.yaml}\n", r"unknown field 'plant\.model' \(did you "
-         r"mean 'plant\.model_file'\?\)"),
-        ("cameras:\n  kinect_v1: !KinectV3Config {}\n", r"'cameras\.kinect_v1' has the tag "
-         r"!KinectV3Config"),
+        (
+            "plant: !IdentifedPlant {model_file: m.yaml}\n",
+            r"'plant' has the tag !IdentifedPlant; "
+            r"expected one of !PneumaticPlant, !PaperPlant, !IdentifiedPlant",
+        ),
+        (
+            "plant: identified:m.yaml\n",
+            r"field 'plant' = 'identified:m.yaml': expected a mapping "
+            r"tagged with one of",
+        ),
+        (
+            "plant: !IdentifiedPlant {model: m.yaml}\n",
+            r"unknown field 'plant\.model' \(did you "
+            r"mean 'plant\.model_file'\?\)",
+        ),
+        (
+            "cameras:\n  kinect_v1: !KinectV3Config {}\n",
+            r"'cameras\.kinect_v1' has the tag "
+            r"!KinectV3Config",
+        ),
         ("duration_s: !Seconds 3\n", r"'duration_s' has the tag !Seconds, but takes no tag"),
-        ("plant: !IdentifiedPlant {model_file: none.yaml}\n", r"plant\.model_file = 'none\.yaml': "
-         r"model file not found"),
-        ("cameras:\n  kinect_v3: !KinectV1Config {frame_rate_hz: 15.0}\n",
-         r"fields not set: cameras\.kinect_v3\.mount_height_m"),
+        (
+            "plant: !IdentifiedPlant {model_file: none.yaml}\n",
+            r"plant\.model_file = 'none\.yaml': "
+            r"model file not found",
+        ),
+        (
+            "cameras:\n  kinect_v3: !KinectV1Config {frame_rate_hz: 15.0}\n",
+            r"fields not set: cameras\.kinect_v3\.mount_height_m",
+        ),
         ("controller: !PaperLqg {camera: kinect_v9}\n", r"controller\.camera = 'kinect_v9'"),
     ],
 )

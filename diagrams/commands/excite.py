@@ -33,6 +33,7 @@ FLAG_OF_FIELD = {
     "band_hz": "--band",
 }
 
+
 def _band(text: str) -> tuple[float, float]:
     try:
         low, high = (float(part) for part in text.split(":"))

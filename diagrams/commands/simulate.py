@@ -65,8 +65,12 @@ def run_command(args: argparse.Namespace) -> int:
     """`maskless simulate`: returns the process exit code."""
     scenario = scenario_from_flags(
         args,
-        {"--duration": "duration_s", "--seed": "random_seed", "--plant": "plant",
-         "--controller": "controller"},
+        {
+            "--duration": "duration_s",
+            "--seed": "random_seed",
+            "--plant": "plant",
+            "--controller": "controller",
+        },
     )
     summary = simulate_to_files(scenario, args.out)
     print(json.dumps(summary) if args.json else format_summary(summary))

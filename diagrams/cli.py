@@ -51,6 +51,17 @@ def add_config_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_out_argument(parser: argparse.ArgumentParser, default: str, contents: str) -> None:
+    """The --out flag: the folder ``contents`` go to, ``./default`` unless given."""
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path(default),
+        metavar="DIR",
+        help=f"where {contents} go (default ./{default})",
+    )
+
+
 def scenario_from_flags(args: argparse.Namespace, flag_fields: dict[str, str]):
     """The scenario of ``--config`` with the scenario fields the given flags set.
 

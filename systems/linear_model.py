@@ -246,6 +246,24 @@ class LinearModel:
             raise ModelError("omega_rad_s must be finite")
         return self.transfer_function(np.exp(1j * omega * self.sample_period_s))
 
+    def controller(self, A, B, C, D) -> "LinearModel":
+        """A controller of this plant, x+ = A x + B y, u = C x + D y, as a LinearModel.
+
+        Its input is this model's output and its output this model's input, so their operating
+        points, units and sample period are this model's, swapped.
+        """
+        return LinearModel(
+            A,
+            B,
+            C,
+            D,
+            self.sample_period_s,
+            operating_input=self.operating_output,
+            operating_output=self.operating_input,
+            input_unit=self.output_unit,
+            output_unit=self.input_unit,
+        )
+
     def output_subtracted_from(self, total: float) -> "LinearModel":
         """The same model with output total - y.
 

@@ -15,9 +15,8 @@ Both read the shipped configuration, or --config FILE.yaml over it (as `maskless
 
 import argparse
 import json
-from pathlib import Path
 
-from maskless.diagrams.cli import add_config_argument, scenario_from_flags
+from maskless.diagrams.cli import add_config_argument, add_out_argument, scenario_from_flags
 from maskless.diagrams.plant_analysis import (
     StabilityRequest,
     analyze_operating_range,
@@ -80,13 +79,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "always included (default 1,2)",
     )
     for sub in (operating, stability):
-        sub.add_argument(
-            "--out",
-            type=Path,
-            default=Path("analysis_out"),
-            metavar="DIR",
-            help="where the JSON and the plots go (default ./analysis_out)",
-        )
+        add_out_argument(sub, "analysis_out", "the JSON and the plots")
         add_config_argument(sub)
         sub.add_argument(
             "--json", action="store_true", help="also print the JSON report as one line"

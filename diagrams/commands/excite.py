@@ -12,9 +12,8 @@ model to the recording.
 
 import argparse
 import json
-from pathlib import Path
 
-from maskless.diagrams.cli import add_config_argument, scenario_from_flags
+from maskless.diagrams.cli import add_config_argument, add_out_argument, scenario_from_flags
 from maskless.diagrams.excitation_run import (
     SIGNALS,
     ExcitationRequest,
@@ -95,9 +94,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="pneumatic, paper or identified:MODEL.yaml (default: the config's, pneumatic)",
     )
     add_config_argument(parser)
-    parser.add_argument(
-        "--out", type=Path, default=Path("excitation"), metavar="DIR", help="default ./excitation"
-    )
+    add_out_argument(parser, "excitation", "run.mcap and run.png")
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
 
 

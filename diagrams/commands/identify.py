@@ -12,6 +12,7 @@ import argparse
 import json
 from pathlib import Path
 
+from maskless.diagrams.cli import add_out_argument
 from maskless.diagrams.identification_run import (
     DEFAULT_MCAP_INPUT,
     DEFAULT_MCAP_OUTPUT,
@@ -121,13 +122,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="unit of the output (default mm for CSV, the field's unit for MCAP)",
     )
-    parser.add_argument(
-        "--out",
-        type=Path,
-        default=Path("identification"),
-        metavar="DIR",
-        help="where the report, models and plots go (default ./identification)",
-    )
+    add_out_argument(parser, "identification", "the report, models and plots")
     parser.add_argument("--json", action="store_true", help="print report.json to stdout")
 
 

@@ -9,9 +9,8 @@ first-principles pneumatic robot and the controller the offset-free LQG; `--plan
 
 import argparse
 import json
-from pathlib import Path
 
-from maskless.diagrams.cli import add_config_argument, scenario_from_flags
+from maskless.diagrams.cli import add_config_argument, add_out_argument, scenario_from_flags
 from maskless.diagrams.run_summary import format_summary
 from maskless.diagrams.simulation import simulate_to_files
 
@@ -32,13 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="N",
         help="random seed (default: the config's random_seed, 0)",
     )
-    parser.add_argument(
-        "--out",
-        type=Path,
-        default=Path("out"),
-        metavar="DIR",
-        help="where run.mcap and run.png go (default: ./out)",
-    )
+    add_out_argument(parser, "out", "run.mcap and run.png")
     add_config_argument(parser)
     parser.add_argument(
         "--plant",

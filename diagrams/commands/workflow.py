@@ -14,9 +14,8 @@ the frame rate (--signal uniform --clock-periods 1) leaves the input's effect be
 import argparse
 import json
 import sys
-from pathlib import Path
 
-from maskless.diagrams.cli import add_config_argument
+from maskless.diagrams.cli import add_config_argument, add_out_argument
 from maskless.diagrams.excitation_run import SIGNALS, ExcitationRequest
 from maskless.diagrams.workflow import format_workflow, run_workflow
 from maskless.systems.units import ma_to_a
@@ -24,9 +23,7 @@ from maskless.systems.units import ma_to_a
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The flags of `maskless workflow`."""
-    parser.add_argument(
-        "--out", type=Path, default=Path("workflow"), metavar="DIR", help="default ./workflow"
-    )
+    add_out_argument(parser, "workflow", "excitation/, identification/ and closed_loop/")
     parser.add_argument("--signal", choices=SIGNALS, default="prbs", help="default prbs")
     parser.add_argument(
         "--amplitude", type=float, default=25.0, metavar="MA", help="mA (default 25)"

@@ -238,16 +238,11 @@ def controller_state_space(design: OffsetFreeLqgDesign) -> LinearModel:
     F[0, :n], F[0, n] = design.K[0], 1.0
     correct = np.eye(size) - design.M @ design.augmented_C
     closed = design.augmented_A - design.augmented_B @ F
-    return LinearModel(
+    return model.controller(
         closed @ correct,
         closed @ design.M,
         -F @ correct,
         -F @ design.M,
-        model.sample_period_s,
-        operating_input=model.operating_output,
-        operating_output=model.operating_input,
-        input_unit=model.output_unit,
-        output_unit=model.input_unit,
     )
 
 

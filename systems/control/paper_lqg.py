@@ -104,16 +104,11 @@ def controller_state_space(model: LinearModel, design: LqgDesign) -> LinearModel
         design: the gains (``design_lqg``).
     """
     A, B, C = model.A, model.B, model.C
-    return LinearModel(
+    return model.controller(
         A - B @ design.K - design.L @ C,
         design.L,
         -design.K,
         np.zeros((1, 1)),
-        model.sample_period_s,
-        operating_input=model.operating_output,
-        operating_output=model.operating_input,
-        input_unit=model.output_unit,
-        output_unit=model.input_unit,
     )
 
 

@@ -31,3 +31,16 @@ def test_the_python_example_gives_the_metrics_of_maskless_simulate(tmp_path, mon
     # The same seed gives the same recording, message for message.
     cli_recording = (tmp_path / "cli" / "run.mcap").read_bytes()
     assert (tmp_path / "out" / "run.mcap").read_bytes() == cli_recording
+
+
+def test_every_public_name_resolves_and_import_stays_cheap():
+    import subprocess
+    import sys
+
+    import maskless
+
+    assert all(getattr(maskless, name) is not None for name in maskless.__all__)
+    # `import maskless` loads no Drake diagram code until a name is used.
+    code = "import sys, maskless; print(any(m.startswith('pydrake') for m in sys.modules))"
+    fresh = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert fresh.stdout.strip() == "False"

@@ -6,7 +6,7 @@ For each coil current of one valve (the other held), ``operating_range`` gives t
 (``pneumatic_plant.equilibrium_state``: lift and bladder gauge pressure) and Drake's ``Linearize``
 of the plant there (``pneumatic_design.linearize_pneumatic_plant``): its DC gain from the coil
 current to the lift and the time constants of its modes. Pure functions on the plant's parameters;
-``stability.plots.plot_operating_range`` draws the result.
+``operating_range_plots.plot_operating_range`` draws the result.
 """
 
 from dataclasses import dataclass

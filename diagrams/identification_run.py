@@ -18,8 +18,8 @@ import numpy as np
 import yaml
 
 from maskless.analysis.identification import report as identification_report
+from maskless.analysis.identification.fit_plots import plot_compare, plot_residuals
 from maskless.analysis.identification.model_file import model_file_contents
-from maskless.analysis.identification.plots import plot_compare, plot_residuals
 from maskless.analysis.identification.records import (
     Detrended,
     detrend,

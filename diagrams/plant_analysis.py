@@ -77,7 +77,7 @@ def analyze_operating_range(scenario: Scenario, points: int = 22, out: str | Pat
     ranges = default_operating_ranges(scenario.pneumatic, points)
     report = operating_range_report(ranges)
     if out is not None:
-        from maskless.analysis.stability.plots import plot_operating_range
+        from maskless.analysis.operating_range_plots import plot_operating_range
 
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
@@ -412,7 +412,7 @@ def analyze_stability(
     cases = robustness_cases(scenario.pneumatic, allocation, design, lifts, factors, ticks)
     report = stability_report(paper, cases, design, scenario.pneumatic.head_mass_kg)
     if out is not None:
-        from maskless.analysis.stability.plots import (
+        from maskless.analysis.stability.stability_plots import (
             plot_offset_free_loops,
             plot_paper_loop,
             plot_robustness,

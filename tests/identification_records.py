@@ -1,4 +1,4 @@
-"""Records for identification tests: simulated from known systems, and the authors' own record."""
+"""Records for identification tests (simulated from known systems, the authors' own) and checks."""
 
 from pathlib import Path
 
@@ -52,3 +52,14 @@ def paper_record():
     if record is None:
         pytest.skip(f"the authors' record is not at {PAPER_DATA} (shared/ is absent)")
     return record
+
+
+def largest_pole_error(estimated, true_poles) -> float:
+    """The largest distance from a true pole to the nearest estimated one."""
+    return max(min(abs(p - q) for q in estimated) for p in true_poles)
+
+
+def scipy_dc_gain(model) -> float:
+    """The static gain by scipy's transfer function of the model's matrices, at z = 1."""
+    num, den = scipy.signal.ss2tf(model.A, model.B, model.C, model.D)
+    return np.polyval(num[0], 1.0) / np.polyval(den, 1.0)

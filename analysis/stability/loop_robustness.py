@@ -12,7 +12,7 @@ measured height deviation to the command deviation (``analysis.stability.margins
   the head's mass and extra sensor latency while the controller stays the one designed at its
   operating lift for the nominal head.
 
-Pure functions on models and designs; ``stability.plots`` draws the results.
+Pure functions on models and designs; ``stability_plots`` draws the results.
 """
 
 import itertools

@@ -1,12 +1,11 @@
-"""Plots of the operating range and of the loops' stability, in mm, mA, kPa, s, dB and degrees."""
+"""Plots of the loops' stability: poles, Bode plots and margins, in mm, s, dB and degrees."""
 
 from pathlib import Path
 
 import numpy as np
 
-from maskless.analysis.operating_range import OperatingRange
 from maskless.analysis.stability.loop_robustness import PaperLoopAnalysis, RobustnessCase
-from maskless.systems.units import a_to_ma, m_to_mm
+from maskless.systems.units import m_to_mm
 
 # Bode plots span this many decades below the Nyquist frequency.
 _BODE_DECADES = 5
@@ -18,47 +17,6 @@ def _figure(size):
     from matplotlib.figure import Figure
 
     return Figure(figsize=size, layout="constrained")
-
-
-def plot_operating_range(path: str | Path, ranges: dict[str, OperatingRange]) -> Path:
-    """Steady lift, gauge pressure, DC gain and slow time constant against each valve's current.
-
-    Draws 2x2 panels. Returns the written path.
-
-    Args:
-        path: the PNG to write.
-        ranges: ``operating_range.default_operating_ranges`` (or any valve -> OperatingRange).
-    """
-    path = Path(path)
-    figure = _figure((11, 7.5))
-    axes = figure.subplots(2, 2, sharex=True)
-    panels = [
-        (axes[0, 0], "steady lift (mm)", lambda r: m_to_mm(r.lift_m)),
-        (axes[0, 1], "steady gauge pressure (kPa)", lambda r: r.gauge_pressure_pa / 1000.0),
-        (axes[1, 0], "DC gain, lift per current (mm/mA)", lambda r: r.dc_gain_m_per_a),
-        (axes[1, 1], "slow time constant (s)", lambda r: r.slow_time_constant_s),
-    ]
-    for axis, label, values in panels:
-        for valve, sweep in ranges.items():
-            held = "outlet" if valve == "inlet" else "inlet"
-            axis.plot(
-                a_to_ma(sweep.currents_a),
-                values(sweep),
-                marker=".",
-                label=f"{valve} swept, {held} at {a_to_ma(sweep.held_current_a):.0f} mA",
-            )
-        axis.set_ylabel(label)
-        axis.grid(alpha=0.3)
-    axes[1, 0].axhline(0.0, color="black", lw=0.6)
-    for axis in axes[1]:
-        axis.set_xlabel("swept valve's coil current (mA)")
-    axes[0, 0].legend(fontsize=8)
-    spans = ", ".join(
-        f"{valve} span {m_to_mm(r.lift_span_m):.2f} mm" for valve, r in ranges.items()
-    )
-    figure.suptitle(f"Pneumatic plant operating range ({spans})")
-    figure.savefig(path, dpi=100)
-    return path
 
 
 def _unit_circle(axis):

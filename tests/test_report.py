@@ -1,0 +1,137 @@
+"""The report's margins and verdict against their documented thresholds, on hand-built figures."""
+
+import math
+
+import numpy as np
+import pytest
+
+from maskless.analysis.identification.report import (
+    EXPLAINS_SIM,
+    EXPLAINS_VERDICT,
+    MARGIN_1STEP,
+    MARGIN_SIM,
+    Part,
+    fit,
+    margins,
+    naive_figures,
+    verdict,
+)
+
+PART = "validation"
+EXPLAINS = EXPLAINS_VERDICT
+NOTHING = "The input explains essentially nothing of the output"
+PARTLY = "The input explains part of the output"
+
+
+def baselines(without_input_1step=89.0, free_response_sim=5.0):
+    """The shape ``baseline_figures`` returns, for one part."""
+    return {
+        "order": 2,
+        "method": "pem",
+        "without_input_structure": "arma",
+        "without_input": {PART: {"fit_percent_1step": without_input_1step}},
+        "free_response": {PART: {"fit_percent_sim": free_response_sim}},
+    }
+
+
+def judge(sim, without_input, free_response, stable=True):
+    """The verdict on a part whose simulation fits ``sim`` % with the given margins (points)."""
+    figures = {"fit_percent_1step": 90.0, "fit_percent_sim": sim}
+    gains = {
+        "naive_last_value": 1.0,
+        "without_input": without_input,
+        "free_response": free_response,
+    }
+    return verdict(figures, baselines(), gains, PART, stable)
+
+
+def test_margins_are_the_fit_points_won_over_each_baseline():
+    # Binary fractions, so the differences are exact.
+    figures = {"fit_percent_1step": 95.5, "fit_percent_sim": 62.25}
+    naive = {PART: {"fit_percent_1step": 90.25}}
+    gains = margins(figures, baselines(95.0, 12.5), naive, PART)
+    assert gains == {"naive_last_value": 5.25, "without_input": 0.5, "free_response": 49.75}
+
+
+def test_a_model_that_loses_has_negative_margins():
+    figures = {"fit_percent_1step": 80.0, "fit_percent_sim": 20.0}
+    naive = {PART: {"fit_percent_1step": 85.0}}
+    gains = margins(figures, baselines(82.5, 30.0), naive, PART)
+    assert gains == {"naive_last_value": -5.0, "without_input": -2.5, "free_response": -10.0}
+
+
+@pytest.mark.parametrize(
+    "free_response_sim, margin",
+    [(-30.0, 40.0), (-1e-9, 40.0), (0.0, 40.0), (0.25, 39.75)],
+)
+def test_a_free_response_worse_than_zero_is_no_baseline(free_response_sim, margin):
+    # "A transient that fits worse than zero is no baseline to beat": the margin is over max(., 0).
+    figures = {"fit_percent_1step": 90.0, "fit_percent_sim": 40.0}
+    naive = {PART: {"fit_percent_1step": 80.0}}
+    gains = margins(figures, baselines(89.0, free_response_sim), naive, PART)
+    assert gains["free_response"] == margin
+
+
+def test_documented_thresholds():
+    # "at least 50 %", "by 10 points", "less than 0.1 points" (the verdict's docstring).
+    assert (EXPLAINS_SIM, MARGIN_SIM, MARGIN_1STEP) == (50.0, 10.0, 0.1)
+
+
+# Just across a threshold: the next float below it.
+BELOW_50 = math.nextafter(50.0, 0.0)
+BELOW_10 = math.nextafter(10.0, 0.0)
+BELOW_0_1 = math.nextafter(0.1, 0.0)
+
+
+@pytest.mark.parametrize(
+    "sim, without_input, free_response, expected",
+    [
+        # Explains: simulation fit >= 50 % and >= 10 points over the free response, whatever
+        # dropping the input costs the one-step fit.
+        (50.0, 5.0, 10.0, EXPLAINS),
+        (50.0, 0.0, 10.0, EXPLAINS),
+        (99.0, -1.0, 60.0, EXPLAINS),
+        (BELOW_50, 5.0, 10.0, PARTLY),
+        (50.0, 5.0, BELOW_10, PARTLY),
+        # Nothing: dropping the input costs < 0.1 points and the simulation is < 10 points over.
+        (BELOW_50, BELOW_0_1, BELOW_10, NOTHING),
+        (80.0, -3.0, -20.0, NOTHING),
+        (BELOW_50, 0.1, BELOW_10, PARTLY),
+        (BELOW_50, BELOW_0_1, 10.0, PARTLY),
+        (80.0, BELOW_0_1, BELOW_10, NOTHING),  # a good fit that the free response makes too
+    ],
+)
+def test_verdict_at_and_just_across_each_threshold(sim, without_input, free_response, expected):
+    words = judge(sim, without_input, free_response)
+    assert words.startswith(f"{expected}: ")
+    assert "UNSTABLE" not in words
+
+
+def test_verdict_gives_its_evidence_and_flags_an_unstable_model():
+    words = judge(62.0, 1.0, 57.0, stable=False)
+    assert words.startswith(f"{EXPLAINS}: ")  # the judgement is the same
+    assert "order-2 structure (ARMA)" in words and f"the {PART} part" in words
+    assert "89.000 % against 90.000 %" in words  # without the input, and with it
+    assert "62.0 % (5.0 % from its initial state alone)" in words
+    assert words.endswith("; the model is UNSTABLE.")
+
+
+def test_naive_figures_fit_last_value_predictions():
+    # ŷ(k) = y(k-1). On the ramp 1..5: errors all 1 over 4 samples (norm 2), the spread of
+    # 2..5 about 3.5 is sqrt(5): fit 100 (1 - 2 / sqrt(5)). On 0, 2, 0, 2: errors all 2 (norm
+    # sqrt(12)) against a spread sqrt(24 / 9) of 2, 0, 2 about 4/3.
+    parts = [
+        Part("ramp", np.zeros(5), np.arange(1.0, 6.0)),
+        Part("zigzag", np.zeros(4), np.array([0.0, 2, 0, 2])),
+    ]
+    figures = naive_figures(parts)
+    assert figures["ramp"]["fit_percent_1step"] == pytest.approx(100 * (1 - 2 / math.sqrt(5)))
+    assert figures["zigzag"]["fit_percent_1step"] == pytest.approx(
+        100 * (1 - math.sqrt(12) / math.sqrt(24 / 9))
+    )
+
+
+def test_an_unknown_method_is_refused_naming_the_methods():
+    part = Part("estimation", np.zeros(100), np.zeros(100))
+    with pytest.raises(ValueError, match="method = 'ols': expected one of pem, armax, arx, n4sid"):
+        fit("ols", part, 2, 1.0)

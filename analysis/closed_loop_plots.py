@@ -17,8 +17,11 @@ def prepare_plotting() -> None:
 
 
 def _thin(times, values):
-    step = max(1, len(times) // _MAX_POINTS)
-    return times[::step], values[::step]
+    """At most ``_MAX_POINTS`` samples, evenly spread, the first and the last kept."""
+    if len(times) <= _MAX_POINTS:
+        return times, values
+    kept = np.linspace(0, len(times) - 1, _MAX_POINTS).round().astype(int)
+    return times[kept], values[..., kept]
 
 
 def plot_closed_loop(

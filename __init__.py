@@ -37,6 +37,9 @@ _EXPORTS = {
     # running
     "build_closed_loop": "maskless.diagrams.closed_loop",
     "simulate": "maskless.diagrams.simulation",
+    "simulate_loop": "maskless.diagrams.simulation",
+    "set_plant_parameters": "maskless.diagrams.closed_loop",
+    "SWEPT_PARAMETERS": "maskless.systems.plant.pneumatic_plant",
     "SimulationRun": "maskless.diagrams.simulation",
     "excite": "maskless.diagrams.excitation_run",
     "ExcitationRequest": "maskless.diagrams.excitation_run",

@@ -47,7 +47,6 @@ names without a version, every file written before versions existed) named the f
 from __future__ import annotations
 
 import copy
-import errno
 import io
 import json
 import re
@@ -253,8 +252,13 @@ def filter_estimate_topic(name: str) -> str:
     return f"/filters/{name}/estimate"
 
 
+def is_sensor_name(name) -> bool:
+    """Whether ``name`` can name a sensor's topics: letters, digits and underscores only."""
+    return isinstance(name, str) and _SENSOR_NAME.fullmatch(name) is not None
+
+
 def _check_sensor_name(name: str) -> None:
-    if not isinstance(name, str) or _SENSOR_NAME.fullmatch(name) is None:
+    if not is_sensor_name(name):
         raise ValueError(f"invalid sensor name {name!r}: use letters, digits and underscores only")
 
 
@@ -708,8 +712,10 @@ def read_recording(path: str | PathLike[str], topics: Collection[str] | None = N
     path = Path(path)
     try:
         data = path.read_bytes()
-    except FileNotFoundError as exc:
-        raise MissingFileError(errno.ENOENT, "MCAP recording not found", str(path)) from exc
+    except FileNotFoundError:
+        raise MissingFileError(f"MCAP recording not found: {path}") from None
+    except OSError as error:  # a folder, or a file that cannot be read
+        raise RecordError(f"{path}: cannot read the recording ({error.strerror})") from None
 
     head = data[: len(_MAGIC)]
     if head != _MAGIC[: len(head)]:

@@ -5,6 +5,7 @@ The positioner is for mask-free head-and-neck radiotherapy. Each subcommand's --
 
 import argparse
 import importlib
+import math
 import sys
 from pathlib import Path
 
@@ -49,6 +50,31 @@ def add_config_argument(parser: argparse.ArgumentParser) -> None:
         metavar="FILE.yaml",
         help="YAML overriding the shipped defaults (assets/simulation.yaml)",
     )
+
+
+def given_labels(args: argparse.Namespace, flag_of_field: dict[str, str]) -> dict[str, str]:
+    """Field -> flag, for the flags the user actually typed: an error names no other flag."""
+    given = getattr(args, "given_flags", frozenset())
+    return {field: flag for field, flag in flag_of_field.items() if flag in given}
+
+
+def positive_number(text: str) -> float:
+    """An argparse type: a positive, finite number (in the flag's own unit)."""
+    value = finite_number(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a positive number")
+    return value
+
+
+def finite_number(text: str) -> float:
+    """An argparse type: a finite number (in the flag's own unit)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a finite number")
+    return value
 
 
 def add_out_argument(parser: argparse.ArgumentParser, default: str, contents: str) -> None:
@@ -110,6 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the `maskless` console script."""
     argv = sys.argv[1:] if argv is None else argv
     args = build_parser(argv).parse_args(argv)
+    args.given_flags = frozenset(word.split("=", 1)[0] for word in argv if word.startswith("--"))
     try:
         return args.module.run_command(args)
     except MasklessError as error:

@@ -9,7 +9,7 @@ excitation), so `maskless identify` reads it as it is.
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +19,7 @@ from pydrake.systems.primitives import ConstantVectorSource
 from maskless.analysis.metrics import estimate_error_std_m
 from maskless.diagrams.closed_loop import ClosedLoop, LoopDrive, add_plant, assemble_loop
 from maskless.diagrams.controller_design import NominalPneumatic, inlet_current_range_a
+from maskless.diagrams.request_labels import LabelledRequest
 from maskless.diagrams.run_summary import estimation_start_s
 from maskless.diagrams.scenario import PneumaticPlant, Scenario, kind_name
 from maskless.diagrams.simulation import SimulationRun, simulate_loop
@@ -39,7 +40,7 @@ SIGNALS = ("uniform", "prbs", "multisine")
 
 
 @dataclass(frozen=True)
-class ExcitationRequest:
+class ExcitationRequest(LabelledRequest):
     """An identification experiment; checked when made.
 
     Attributes:
@@ -52,7 +53,7 @@ class ExcitationRequest:
             controller's.
         clock_periods: prbs only: samples each bit is held.
         band_hz: multisine only: (low, high) band in Hz; None for the whole grid up to Nyquist.
-        labels: field -> what the user calls it (a flag), for messages.
+        labels: see ``LabelledRequest``.
     """
 
     signal: str = "uniform"
@@ -62,7 +63,6 @@ class ExcitationRequest:
     sample_period_s: float | None = None
     clock_periods: int = 1
     band_hz: tuple[float, float] | None = None
-    labels: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
         """Raises ConfigError for the first field out of range, named as the user named it."""
@@ -96,10 +96,6 @@ class ExcitationRequest:
             "1 or more samples per bit",
         )
 
-    def label(self, field_name: str) -> str:
-        """How the user named a field (its flag), for messages."""
-        return self.labels.get(field_name, field_name)
-
 
 @dataclass
 class ExcitationRun:
@@ -126,15 +122,21 @@ def excite(scenario: Scenario, request: ExcitationRequest) -> ExcitationRun:
     is not used).
 
     Raises:
-        ConfigError: a PRBS with fewer than two bits, or an excitation that clipping to the
-            inlet's range leaves constant.
+        ConfigError: fewer than two samples, a PRBS with fewer than two bits, a multisine band
+            with no line of the frequency grid, or an excitation that clipping to the inlet's
+            range leaves constant.
     """
     start_a, saturation_a = inlet_current_range_a(scenario)
     valve_range_a = (0.0, saturation_a)
     offset_a = 0.5 * (start_a + saturation_a) if request.offset_a is None else request.offset_a
     period_s = request.sample_period_s or scenario.offset_free_lqg.sample_period_s
     samples = sample_count(request.duration_s, period_s)
-    if not request.clock_periods <= samples // 2:
+    if samples < 2:
+        raise ConfigError(
+            f"{request.label('duration_s')} {request.duration_s}: expected at least two samples "
+            f"of {period_s:.6g} s"
+        )
+    if request.signal == "prbs" and not request.clock_periods <= samples // 2:
         raise ConfigError(
             f"{request.label('clock_periods')} {request.clock_periods}: expected 1 to "
             f"{samples // 2} (half the {samples} samples), so the PRBS has at least two bits"

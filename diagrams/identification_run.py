@@ -11,7 +11,7 @@ import dataclasses
 import json
 import math
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +19,7 @@ import yaml
 
 from maskless.analysis.identification import report as identification_report
 from maskless.analysis.identification.fit_plots import plot_compare, plot_residuals
-from maskless.analysis.identification.model_file import model_file_contents
+from maskless.analysis.identification.model_file import MODEL_FILE_UNITS, model_file_contents
 from maskless.analysis.identification.records import (
     Detrended,
     detrend,
@@ -30,7 +30,9 @@ from maskless.analysis.identification.records import (
 from maskless.analysis.identification.report import METHODS, FittedModel, Part
 from maskless.analysis.identification.subspace import default_horizon
 from maskless.diagrams.background import BackgroundTask
-from maskless.errors import RecordError
+from maskless.diagrams.output_folder import output_folder
+from maskless.diagrams.request_labels import LabelledRequest
+from maskless.errors import ConfigError, RecordError
 from maskless.recording import COMMAND_TOPIC, FUSION_TOPIC
 from maskless.systems.linear_model import LinearModel
 
@@ -47,7 +49,7 @@ _TS_TOLERANCE = 0.01
 
 
 @dataclass(frozen=True)
-class IdentificationRequest:
+class IdentificationRequest(LabelledRequest):
     """What to identify, from which record; checked when made.
 
     Attributes:
@@ -67,7 +69,7 @@ class IdentificationRequest:
         estimate_initial_state: estimate x(0) with the model (else fix it at zero).
         input_unit: the input's unit (m, mm, A, mA); None for mA (CSV) or the field's unit.
         output_unit: likewise for the output (None: mm for CSV).
-        labels: field -> what the user calls it (a flag), for messages.
+        labels: see ``LabelledRequest``.
     """
 
     input: Path | None
@@ -84,7 +86,6 @@ class IdentificationRequest:
     estimate_initial_state: bool = True
     input_unit: str | None = None
     output_unit: str | None = None
-    labels: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
         """Makes the files Paths and the orders a tuple; RecordError for a field out of range."""
@@ -95,30 +96,32 @@ class IdentificationRequest:
         object.__setattr__(self, "orders", tuple(self.orders))
         label = self.label
         if not (isinstance(self.ts, int | float) and math.isfinite(self.ts) and self.ts > 0):
-            raise RecordError(
+            raise ConfigError(
                 f"{label('ts')} {self.ts}: expected a positive, finite sample period in s"
             )
         if not self.orders or any(
             not isinstance(order, int) or isinstance(order, bool) or order < 1
             for order in self.orders
         ):
-            raise RecordError(
+            raise ConfigError(
                 f"{label('orders')} {self.orders}: expected positive integers, e.g. 2,4"
             )
         if self.method not in METHODS:
-            raise RecordError(
+            raise ConfigError(
                 f"{label('method')} {self.method!r}: expected one of {', '.join(METHODS)}"
             )
         if self.detrend not in DETREND_MODES:
-            raise RecordError(
+            raise ConfigError(
                 f"{label('detrend')} {self.detrend!r}: expected {', '.join(DETREND_MODES)}"
             )
+        for name in ("input_unit", "output_unit"):
+            unit = getattr(self, name)
+            if unit is not None and unit not in MODEL_FILE_UNITS:
+                raise ConfigError(
+                    f"{label(name)} {unit!r}: expected one of {', '.join(MODEL_FILE_UNITS)}"
+                )
         if self.k_step is not None and self.k_step < 1:
-            raise RecordError(f"{label('k_step')} {self.k_step}: expected a positive integer")
-
-    def label(self, field_name: str) -> str:
-        """How the user named a field (its flag), for messages."""
-        return self.labels.get(field_name, field_name)
+            raise ConfigError(f"{label('k_step')} {self.k_step}: expected a positive integer")
 
 
 @dataclass
@@ -337,8 +340,7 @@ def write_identification(identified: "IdentificationRun", out: str | Path) -> di
     """
     fitted_models, parts, report = identified.fitted_models, identified.parts, identified.report
     offsets, units, request = identified.offsets, identified.units, identified.request
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_folder(out)
 
     def plots():
         for fitted in fitted_models:

@@ -11,9 +11,11 @@ writes the files.
 import dataclasses
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
+from maskless.diagrams.output_folder import output_folder
+from maskless.diagrams.request_labels import LabelledRequest
 from maskless.diagrams.scenario import Scenario
 from maskless.errors import ConfigError
 
@@ -24,7 +26,7 @@ _SUMMARY_ROWS = 8
 
 
 @dataclass(frozen=True)
-class StabilityRequest:
+class StabilityRequest(LabelledRequest):
     """Where the offset-free LQG's loop is judged; checked when made.
 
     Attributes:
@@ -32,13 +34,12 @@ class StabilityRequest:
         mass_factors: head masses as factors on the scenario's head; 1 is always included.
         extra_latency_ticks: sensor latency beyond the designed-for delay (controller ticks); 0 is
             always included.
-        labels: field -> what the user calls it (a flag), for messages.
+        labels: see ``LabelledRequest``.
     """
 
     lifts_m: tuple[float, ...] = (0.002, 0.005, 0.009, 0.013)
     mass_factors: tuple[float, ...] = (0.8, 1.2)
     extra_latency_ticks: tuple[int, ...] = (1, 2)
-    labels: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
         """Raises ConfigError for the first field out of range, named as the user named it."""
@@ -54,10 +55,6 @@ class StabilityRequest:
                 f"{label('extra_latency_ticks')} {self.extra_latency_ticks}: expected whole "
                 "ticks >= 0"
             )
-
-    def label(self, field_name: str) -> str:
-        """How the user named a field (its flag), for messages."""
-        return self.labels.get(field_name, field_name)
 
 
 # --- operating-range ------------------------------------------------------------------------------
@@ -79,8 +76,7 @@ def analyze_operating_range(scenario: Scenario, points: int = 22, out: str | Pat
     if out is not None:
         from maskless.analysis.operating_range_plots import plot_operating_range
 
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
+        out = output_folder(out)
         plot = plot_operating_range(out / "operating_range.png", ranges)
         report["files"] = {"report": str(out / "operating_range.json"), "plot": str(plot)}
         (out / "operating_range.json").write_text(json.dumps(report, indent=1))
@@ -169,7 +165,7 @@ def format_operating_range(report: dict, head_mass_kg: float) -> str:
         lines.append("")
     low, high = report["working_range_mm"]
     lines.append(f"Working range (inlet, outlet shut): {low:.2f} to {high:.2f} mm of lift")
-    lines += ["Files:"] + [f"  {kind}: {path}" for kind, path in report["files"].items()]
+    lines += _files_lines(report)
     return "\n".join(lines)
 
 
@@ -355,9 +351,8 @@ def format_stability(report: dict) -> str:
         f"{_shown(o['min_delay_margin_s'], '.2f')} s (requirement: "
         f"{1000 * o['latency_requirement_s']:.0f} ms of latency), max |pole| "
         f"{o['max_pole_magnitude']:.5f}",
-        "Files:",
-        *(f"  {kind}: {path}" for kind, path in report["files"].items()),
     ]
+    lines += _files_lines(report)
     return "\n".join(lines)
 
 
@@ -418,8 +413,7 @@ def analyze_stability(
             plot_robustness,
         )
 
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
+        out = output_folder(out)
         report["files"] = {
             "report": str(out / "stability.json"),
             "paper_loop_plot": str(plot_paper_loop(out / "stability_paper_lqg.png", paper)),
@@ -432,3 +426,9 @@ def analyze_stability(
         }
         (out / "stability.json").write_text(json.dumps(report, indent=1))
     return report
+
+
+def _files_lines(report: dict) -> list[str]:
+    """The files a report was written to, when it was written (``out`` given)."""
+    files = report.get("files", {})
+    return ["Files:", *(f"  {kind}: {path}" for kind, path in files.items())] if files else []

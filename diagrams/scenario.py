@@ -17,8 +17,16 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from maskless.errors import ConfigError
-from maskless.systems.config_loading import UNSET, asset_path, find_unset_fields, load_config
+from maskless.analysis.identification.model_file import load_identified_model
+from maskless.errors import ConfigError, MasklessError
+from maskless.recording import is_sensor_name
+from maskless.systems.config_loading import (
+    UNSET,
+    asset_path,
+    check_override,
+    find_unset_fields,
+    load_config,
+)
 from maskless.systems.control.offset_free_lqg import OffsetFreeLqgWeights
 from maskless.systems.paper_parameters import (
     PaperParameters,
@@ -281,6 +289,7 @@ def scenario_with_overrides(
     for name, value in given.items():
         if name not in known:
             raise ConfigError(f"unknown scenario field {name!r}; known: {', '.join(sorted(known))}")
+        check_override(Scenario, name, value, labels.get(name, "overrides"))
         setattr(scenario, name, value)
     # Validated once, after the overrides: an override may mend what the file set.
     try:
@@ -296,6 +305,7 @@ def scenario_with_overrides(
 
 def validate_scenario(config: Scenario) -> None:
     """Raises ConfigError naming the first field that is unset or out of range."""
+    _validate_camera_names(config)
     unset = find_unset_fields(config)
     if unset:
         raise ConfigError(f"fields not set: {', '.join(unset)}")
@@ -385,13 +395,44 @@ def validate_scenario(config: Scenario) -> None:
         )
 
 
-def _validate_cameras(config: Scenario) -> None:
+# Names the closed loop gives its own systems; a camera's systems are NAME, NAME.noise and
+# NAME_filter, so a camera may take none of these (nor a name starting with "log_").
+_LOOP_SYSTEM_NAMES = {
+    "reference",
+    "fusion",
+    "offset_free_lqg",
+    "paper_lqg",
+    "valve_current_limits",
+    "outlet_valve_shut",
+    "excitation",
+    "pneumatic_plant",
+    "paper_plant",
+    "identified_plant",
+}
+
+
+def _validate_camera_names(config: Scenario) -> None:
+    """Refuses no camera, and a name no topic or system can carry."""
     if not config.cameras:
         raise ConfigError("cameras: expected at least one camera")
+    for name in config.cameras:
+        # A camera's name is one segment of its recording topics and names its diagram systems.
+        if not is_sensor_name(name):
+            raise ConfigError(
+                f"cameras.{name}: expected a name of ASCII letters, digits and underscores"
+            )
+        taken = name in _LOOP_SYSTEM_NAMES or name.startswith("log_")
+        if taken or name.removesuffix("_filter") in set(config.cameras) - {name}:
+            raise ConfigError(f"cameras.{name}: the closed loop has a system of that name already")
+
+
+def _validate_cameras(config: Scenario) -> None:
+    """Refuses a camera that is no camera model, or whose model is out of range."""
     for name, camera in config.cameras.items():
-        # A camera's name is one segment of its recording topics and of its diagram ports.
-        if not name.isidentifier():
-            raise ConfigError(f"cameras.{name}: expected a name of letters, digits and underscores")
+        if not isinstance(camera, Camera.__args__):
+            raise ConfigError(
+                f"cameras.{name} = {camera!r}: expected a KinectV1Config or a KinectV2Config"
+            )
         validate_sensor_config(f"cameras.{name}", camera)
 
 
@@ -413,6 +454,12 @@ def _validate_choices(config: Scenario) -> None:
     for field_name, path in files.items():
         if path and not Path(path).is_file():
             raise ConfigError(f"{field_name} = {path!r}: model file not found")
+        if path:
+            # Read now, so a malformed model file is refused before anything runs.
+            try:
+                load_identified_model(path)
+            except MasklessError as error:
+                raise ConfigError(f"{field_name}: {error}") from None
     for field_name, choice in (("plant", config.plant), ("controller", config.controller)):
         camera = getattr(choice, "camera", None)
         if camera is not None and camera not in config.cameras:

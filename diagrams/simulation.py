@@ -22,6 +22,7 @@ from maskless.diagrams.closed_loop import (
     logged_signals,
     set_plant_parameters,
 )
+from maskless.diagrams.output_folder import output_folder
 from maskless.diagrams.run_recording import signal_channels
 from maskless.diagrams.run_summary import summarize, summary_with_timing
 from maskless.diagrams.scenario import Scenario
@@ -71,8 +72,7 @@ class SimulationRun:
         """Writes the run's recording (topics in ``maskless.recording``) to ``path``."""
         from maskless.recording import write_recording
 
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
+        path = output_folder(Path(path).parent) / Path(path).name
         write_recording(path, self.recording_channels())
         return path
 
@@ -106,8 +106,7 @@ class SimulationRun:
         """
         from maskless.analysis.closed_loop_plots import plot_closed_loop
 
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
+        path = output_folder(Path(path).parent) / Path(path).name
         return plot_closed_loop(path, **self.plot_arguments(show_tolerance))
 
 
@@ -186,8 +185,7 @@ def simulate_to_files(scenario: Scenario, out: str | Path) -> dict:
     def report_progress(simulated_s, duration_s):
         print(f"simulated {simulated_s:.0f} / {duration_s:.0f} s", file=sys.stderr, flush=True)
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_folder(out)
     mcap_path, png_path = out / "run.mcap", out / "run.png"
     camera_names = list(scenario.cameras)
     # The second core works while the loop runs: one worker writes the recording as the samples

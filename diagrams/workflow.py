@@ -1,12 +1,13 @@
 """The paper's workflow, closed inside the product: excite -> identify -> design -> simulate.
 
-1. `maskless excite` drives the pneumatic plant's inlet open loop and records the cameras, filters
-   and fusion to DIR/excitation/run.mcap;
+1. `maskless excite` drives the plant's inlet open loop and records the cameras, filters and
+   fusion to DIR/excitation/run.mcap;
 2. `maskless identify` fits a state-space model (prediction error, the order given) from the
    recorded command to the fused height, into DIR/identification/;
 3. `maskless simulate --controller offset-free-lqg:MODEL.yaml` designs the offset-free LQG on that
-   model with Drake's Riccati solvers and closes the loop on the pneumatic plant, into
-   DIR/closed_loop/.
+   model with Drake's Riccati solvers and closes the loop on the plant, into DIR/closed_loop/.
+
+The plant is the scenario's, the pneumatic one by default.
 
 Each stage is one library call; the command line that does the same is printed first, so any
 stage can be re-run by hand. The default excitation is a PRBS whose bits last 2 s: the bladder's
@@ -27,7 +28,7 @@ from maskless.diagrams.identification_run import IdentificationRequest, identify
 from maskless.diagrams.run_summary import tracking_lines
 from maskless.diagrams.scenario import (
     OffsetFreeLqg,
-    load_scenario,
+    scenario_with_overrides,
     shorthand,
     validate_scenario,
 )
@@ -81,7 +82,7 @@ def run_workflow(
     excitation: ExcitationRequest = DEFAULT_EXCITATION,
     order: int = 2,
     closed_loop_s: float = 120.0,
-    seed: int = 0,
+    seed: int | None = None,
     config: str | Path | None = None,
     echo: Callable[[str], None] = print,
     labels: dict[str, str] | None = None,
@@ -93,7 +94,7 @@ def run_workflow(
         excitation: the experiment.
         order: the identified model's order (the paper's is 2).
         closed_loop_s: the closed-loop simulation's duration (s).
-        seed: the seed of both simulations.
+        seed: the seed of both simulations; None for the scenario's.
         config: a scenario YAML overriding the shipped one, for both simulations.
         echo: called with each stage's equivalent command line (and a warning, if any).
         labels: argument -> what the user calls it (a flag), for messages.
@@ -113,7 +114,8 @@ def run_workflow(
         raise ConfigError(
             f"{labels.get('order', 'order')} {order}: expected a model order of at least 1"
         )
-    scenario = load_scenario(config, random_seed=seed)
+    scenario = scenario_with_overrides(config, {"random_seed": seed}, labels)
+    seed = scenario.random_seed
     echo(excite_command(excitation, seed, config, out / "excitation"))
     excited = excite_to_files(scenario, excitation, out / "excitation")
     identification = IdentificationRequest(
@@ -168,7 +170,10 @@ def format_workflow(result: dict) -> str:
     ]
     if identified["warning"]:
         lines.append(f"   WARNING: {identified['warning']}")
-    lines.append("3. simulate on the pneumatic plant, controller designed on that model:")
+    closed_loop = result["closed_loop"]
+    lines.append(
+        f"3. simulate on the {closed_loop['plant']} plant, controller designed on that model:"
+    )
     lines += [f"   {line}" for line in tracking_lines(result["closed_loop"]["tracking"])]
     lines.append(f"   plot {result['closed_loop']['files']['plot']}")
     return "\n".join(lines)

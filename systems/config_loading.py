@@ -145,7 +145,7 @@ def _checked_value(value, annotation, default, filename: str, dotted_name: str):
             )
     else:
         tag = type(default).__name__ if type(default) in alternatives else alternatives[0].__name__
-    if value is None:
+    if value is None or value == "":  # a bare tag, "!PneumaticPlant", has no fields to set
         value = {}
     same_type_default = default if type(default) is by_tag[tag] else None
     tree = _checked_tree(value, by_tag[tag], same_type_default, filename, f"{dotted_name}.")
@@ -183,6 +183,23 @@ def _check_scalar_type(value, annotation, filename: str, dotted_name: str) -> No
         )
 
 
+def check_override(schema, field_name: str, value, source: str) -> None:
+    """Refuses a value set in Python (not YAML) whose type the field of ``schema`` cannot hold.
+
+    Numbers, strings, booleans and lists are checked as a YAML value would be; a dataclass field
+    (or a Union of them) takes an instance of one of its dataclasses.
+
+    Raises:
+        ConfigError: naming ``source``, the field and what was expected.
+    """
+    annotation = typing.get_type_hints(schema)[field_name]
+    alternatives = _dataclass_alternatives(annotation)
+    if alternatives and not isinstance(value, alternatives):
+        names = ", ".join(alternative.__name__ for alternative in alternatives)
+        raise ConfigError(f"{source}: field '{field_name}' = {value!r}: expected one of {names}")
+    _check_scalar_type(value, annotation, source, field_name)
+
+
 def find_unset_fields(config, prefix: str = "") -> list[str]:
     """Dotted names of float fields still at ``UNSET`` (NaN) anywhere in a dataclass tree.
 
@@ -215,7 +232,11 @@ def load_config(schema, filename: str | Path, defaults=None):
     try:
         tree = yaml.load(path.read_text(), Loader=_TagKeepingLoader)
     except yaml.YAMLError as error:
-        raise ConfigError(f"{path}: not valid YAML: {error}") from error
+        # PyYAML's own message spans several lines; the CLI's errors are one line.
+        mark = getattr(error, "problem_mark", None)
+        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
+        problem = getattr(error, "problem", None) or str(error).splitlines()[0]
+        raise ConfigError(f"{where}: not valid YAML: {problem}") from None
     if tree is None:
         tree = {}
     checked = _checked_tree(tree, schema, defaults, str(path))

@@ -36,7 +36,10 @@ def flags(**values):
 
 def test_flags_build_the_scenario_variants_they_abbreviate(tmp_path):
     model = tmp_path / "m.yaml"
-    model.write_text("{}")
+    model.write_text(
+        "{A: [[0.9]], B: [[0.01]], C: [[1.0]], D: [[0.0]], K: [[0.1]], sample_period_s: 0.1,"
+        " input: {unit: A, offset: 0.1}, output: {unit: m, offset: 0.2}}"
+    )
     scenario = scenario_from_flags(
         flags(duration=7.0, plant=f"identified:{model}", controller="paper-lqg"),
         {"--duration": "duration_s", "--plant": "plant", "--controller": "controller"},

@@ -9,16 +9,19 @@ from maskless.diagrams.cli import main
 README = Path(__file__).resolve().parents[1] / "README.md"
 
 
-def readme_python_example() -> str:
-    (example,) = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
-    return example
+def readme_python_examples() -> list[str]:
+    """Every Python block of the README, in order; they run one after another."""
+    return re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
 
 
 def test_the_python_example_gives_the_metrics_of_maskless_simulate(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     namespace = {}
-    exec(compile(readme_python_example(), str(README), "exec"), namespace)  # noqa: S102
+    for example in readme_python_examples():
+        exec(compile(example, str(README), "exec"), namespace)  # noqa: S102
     run = namespace["run"]
+    # The sweep block wrote each head into the one loop it built.
+    assert namespace["swept"].scenario is run.scenario
     assert (tmp_path / "out" / "run.mcap").is_file() and (tmp_path / "out" / "run.png").is_file()
     capsys.readouterr()
 

@@ -208,6 +208,24 @@ def test_an_override_that_breaks_the_scenario_names_the_override():
 
 
 def test_a_choice_set_as_a_string_is_refused_naming_the_variants():
-    expected = "controller = 'paper-lqg': expected one of OffsetFreeLqg"
+    expected = "field 'controller' = 'paper-lqg': expected one of OffsetFreeLqg, PaperLqg"
     with pytest.raises(ConfigError, match=expected):
         load_scenario(controller="paper-lqg")
+
+
+@pytest.mark.parametrize(
+    "overrides, message",
+    [
+        ({"duration_s": "30"}, r"field 'duration_s' = '30': expected a number"),
+        ({"random_seed": 1.5}, r"field 'random_seed' = 1.5: expected an integer"),
+        ({"cameras": {"a": 3}}, r"cameras\.a = 3: expected a KinectV1Config"),
+        ({"cameras": {"kinéct": None}}, r"cameras\.kinéct: expected a name of ASCII letters"),
+        ({"cameras": {"fusion": None}}, r"cameras\.fusion: the closed loop has a system"),
+    ],
+)
+def test_an_override_of_the_wrong_type_or_name_is_refused(config, overrides, message):
+    if "cameras" in overrides:  # a real camera model under a bad name
+        camera = next(iter(config.cameras.values()))
+        overrides = {"cameras": {k: v or camera for k, v in overrides["cameras"].items()}}
+    with pytest.raises(ConfigError, match=message):
+        load_scenario(**overrides)

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import yaml
 
-from maskless.errors import ModelError
+from maskless.errors import MissingFileError, ModelError
 from maskless.systems.linear_model import LinearModel
 
 if TYPE_CHECKING:
@@ -21,6 +21,8 @@ if TYPE_CHECKING:
 
 # Each unit the files may carry: its SI unit and the SI value of one of it.
 _SI_UNITS = {"m": ("m", 1.0), "mm": ("m", 1e-3), "A": ("A", 1.0), "mA": ("A", 1e-3)}
+# The units a model file may carry.
+MODEL_FILE_UNITS = tuple(_SI_UNITS)
 
 
 def model_file_contents(
@@ -70,10 +72,10 @@ def load_identified_model(path: str | Path) -> LinearModel:
             shape, naming the file.
     """
     path = Path(path)
-    contents = yaml.safe_load(path.read_text())
+    contents = _model_file_contents(path)
     try:
-        output_unit, output_scale = _SI_UNITS[contents["output"]["unit"]]
-        input_unit, input_scale = _SI_UNITS[contents["input"]["unit"]]
+        output_unit, output_scale = _si_unit(path, contents, "output")
+        input_unit, input_scale = _si_unit(path, contents, "input")
         matrices = {name: np.array(contents[name], float) for name in ("A", "B", "C", "D", "K")}
         variance = contents.get("innovations_variance")
         return LinearModel(
@@ -90,8 +92,31 @@ def load_identified_model(path: str | Path) -> LinearModel:
             innovations_variance=None if variance is None else variance * output_scale**2,
         )
     except KeyError as missing:
-        raise ModelError(
-            f"{path}: missing field {missing} or a unit not in {sorted(_SI_UNITS)}"
-        ) from None
-    except ModelError as error:
+        raise ModelError(f"{path}: missing field {missing}") from None
+    except (TypeError, ValueError) as error:  # ModelError is a ValueError: it names the matrix
         raise ModelError(f"{path}: {error}") from None
+
+
+def _model_file_contents(path: Path) -> dict:
+    """The mapping a model file holds, refused with the file named when it is none."""
+    try:
+        contents = yaml.safe_load(path.read_text())
+    except FileNotFoundError:
+        raise MissingFileError(f"model file not found: {path}") from None
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as error:
+        raise ModelError(
+            f"{path}: not a readable YAML model file ({type(error).__name__})"
+        ) from None
+    if not isinstance(contents, dict):
+        raise ModelError(
+            f"{path}: expected a mapping of A, B, C, D, K, sample_period_s, input, output"
+        )
+    return contents
+
+
+def _si_unit(path: Path, contents: dict, signal: str) -> tuple[str, float]:
+    """(SI unit, scale to it) of the file's ``signal`` ("input" or "output")."""
+    unit = contents[signal]["unit"]
+    if unit not in _SI_UNITS:
+        raise ModelError(f"{path}: {signal}.unit = {unit!r}: expected one of {sorted(_SI_UNITS)}")
+    return _SI_UNITS[unit]

@@ -16,7 +16,12 @@ Both read the shipped configuration, or --config FILE.yaml over it (as `maskless
 import argparse
 import json
 
-from maskless.diagrams.cli import add_config_argument, add_out_argument, scenario_from_flags
+from maskless.diagrams.cli import (
+    add_config_argument,
+    add_out_argument,
+    given_labels,
+    scenario_from_flags,
+)
 from maskless.diagrams.plant_analysis import (
     StabilityRequest,
     analyze_operating_range,
@@ -82,7 +87,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         add_out_argument(sub, "analysis_out", "the JSON and the plots")
         add_config_argument(sub)
         sub.add_argument(
-            "--json", action="store_true", help="also print the JSON report as one line"
+            "--json",
+            action="store_true",
+            help="print the JSON report as one line instead of the text",
         )
 
 
@@ -102,7 +109,7 @@ def stability_request(args: argparse.Namespace) -> StabilityRequest:
         extra_latency_ticks=tuple(
             _parse_list(args.extra_latency_ticks, "--extra-latency-ticks", int, "whole ticks")
         ),
-        labels=_FLAG_OF_FIELD,
+        labels=given_labels(args, _FLAG_OF_FIELD),
     )
 
 

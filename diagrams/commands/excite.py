@@ -2,7 +2,7 @@
 
 Drives the inlet valve (outlet shut) with the paper's uniform white noise (Eq. 22-23), a PRBS or a
 Schroeder multisine about an offset current, clipped to the valve's [0, saturation] range as the
-authors clipped theirs, while both cameras, their local Kalman filters and the fusion watch the
+authors clipped theirs, while the cameras, their local Kalman filters and the fusion watch the
 head. Writes DIR/run.mcap with the topics `maskless simulate` writes (the command topic carries the
 excitation; the reference topic holds the resting height, as nothing is commanded), DIR/run.png,
 and prints the signal's standard deviation (against A/sqrt(3) for uniform noise), its crest factor
@@ -13,7 +13,14 @@ model to the recording.
 import argparse
 import json
 
-from maskless.diagrams.cli import add_config_argument, add_out_argument, scenario_from_flags
+from maskless.diagrams.cli import (
+    add_config_argument,
+    add_out_argument,
+    finite_number,
+    given_labels,
+    positive_number,
+    scenario_from_flags,
+)
 from maskless.diagrams.excitation_run import (
     SIGNALS,
     ExcitationRequest,
@@ -48,14 +55,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--signal", choices=SIGNALS, default="uniform", help="default uniform")
     parser.add_argument(
         "--amplitude",
-        type=float,
+        type=positive_number,
         default=50.0,
         metavar="MA",
         help="half-width of the current excursion, mA (default 50)",
     )
     parser.add_argument(
         "--offset",
-        type=float,
+        type=finite_number,
         default=None,
         metavar="MA",
         help="centre current, mA (default: mid-way between the inlet's starting and saturation "
@@ -108,7 +115,7 @@ def excitation_request(args: argparse.Namespace) -> ExcitationRequest:
         sample_period_s=args.period,
         clock_periods=args.clock_periods,
         band_hz=args.band,
-        labels=FLAG_OF_FIELD,
+        labels=given_labels(args, FLAG_OF_FIELD),
     )
 
 

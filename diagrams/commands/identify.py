@@ -12,7 +12,8 @@ import argparse
 import json
 from pathlib import Path
 
-from maskless.diagrams.cli import add_out_argument
+from maskless.analysis.identification.model_file import MODEL_FILE_UNITS
+from maskless.diagrams.cli import add_out_argument, given_labels
 from maskless.diagrams.identification_run import (
     DEFAULT_MCAP_INPUT,
     DEFAULT_MCAP_OUTPUT,
@@ -22,7 +23,7 @@ from maskless.diagrams.identification_run import (
     format_identification_report,
     identify_to_files,
 )
-from maskless.errors import RecordError
+from maskless.errors import ConfigError
 
 # The request's fields as the flags name them, so an error names the flag that was given.
 FLAG_OF_FIELD = {
@@ -78,7 +79,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         choices=METHODS,
         default="pem",
         help="pem: innovations-form state space; armax: the same by polynomials; "
-        "arx: least squares (default pem)",
+        "arx: least squares; n4sid: subspace (PO-MOESP) (default pem)",
     )
     parser.add_argument(
         "--estimation",
@@ -115,11 +116,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--input-unit",
         default=None,
+        choices=MODEL_FILE_UNITS,
         help="unit of the input: m, mm, A or mA (default mA for CSV, the field's unit for MCAP)",
     )
     parser.add_argument(
         "--output-unit",
         default=None,
+        choices=MODEL_FILE_UNITS,
         help="unit of the output (default mm for CSV, the field's unit for MCAP)",
     )
     add_out_argument(parser, "identification", "the report, models and plots")
@@ -131,7 +134,7 @@ def parse_orders(text: str) -> list[int]:
     try:
         return [int(part) for part in text.split(",")]
     except ValueError:
-        raise RecordError(f"--orders {text!r}: expected positive integers, e.g. 2,4") from None
+        raise ConfigError(f"--orders {text!r}: expected positive integers, e.g. 2,4") from None
 
 
 def identification_request(args: argparse.Namespace) -> IdentificationRequest:
@@ -151,7 +154,7 @@ def identification_request(args: argparse.Namespace) -> IdentificationRequest:
         estimate_initial_state=args.initial_state == "estimate",
         input_unit=args.input_unit,
         output_unit=args.output_unit,
-        labels=FLAG_OF_FIELD,
+        labels=given_labels(args, FLAG_OF_FIELD),
     )
 
 

@@ -1,10 +1,10 @@
 """Simulate the closed loop: record it to MCAP, plot it and summarise it.
 
-Runs the whole sensing and control chain (two depth cameras, local Kalman filters, track-to-track
-fusion, a controller, two valves, bladder and head) as one Drake Diagram for --duration simulated
-seconds, then writes DIR/run.mcap and DIR/run.png and prints a summary. By default the plant is the
-first-principles pneumatic robot and the controller the offset-free LQG; `--plant paper
---controller paper-lqg` reproduces the seed paper's loop.
+Runs the whole sensing and control chain (the depth cameras, their local Kalman filters,
+track-to-track fusion, a controller, two valves, bladder and head) as one Drake Diagram for
+--duration simulated seconds, then writes DIR/run.mcap and DIR/run.png and prints a summary. By
+default the plant is the first-principles pneumatic robot and the controller the offset-free LQG;
+`--plant paper --controller paper-lqg` reproduces the seed paper's loop.
 """
 
 import argparse

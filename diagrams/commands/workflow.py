@@ -1,9 +1,10 @@
 """The paper's workflow, closed inside the product: excite -> identify -> design -> simulate.
 
-1. excite the pneumatic plant's inlet open loop and record it to DIR/excitation/run.mcap;
+1. excite the scenario's plant (the pneumatic one by default) on its inlet, open loop, and record
+   it to DIR/excitation/run.mcap;
 2. identify a state-space model (prediction error, --order) from the recorded command to the fused
    height, into DIR/identification/;
-3. design the offset-free LQG on that model and simulate it on the pneumatic plant, into
+3. design the offset-free LQG on that model and simulate it on that plant, into
    DIR/closed_loop/.
 
 Each stage prints the `maskless` command that redoes it alone. The default PRBS holds each bit
@@ -13,12 +14,26 @@ the frame rate (--signal uniform --clock-periods 1) leaves the input's effect be
 
 import argparse
 import json
-import sys
 
-from maskless.diagrams.cli import add_config_argument, add_out_argument
+from maskless.diagrams.cli import (
+    add_config_argument,
+    add_out_argument,
+    finite_number,
+    given_labels,
+    positive_number,
+)
 from maskless.diagrams.excitation_run import SIGNALS, ExcitationRequest
 from maskless.diagrams.workflow import format_workflow, run_workflow
 from maskless.systems.units import ma_to_a
+
+_EXCITATION_FLAGS = {
+    "signal": "--signal",
+    "amplitude_a": "--amplitude",
+    "offset_a": "--offset",
+    "duration_s": "--excitation-duration",
+    "clock_periods": "--clock-periods",
+}
+_WORKFLOW_FLAGS = {"closed_loop_s": "--duration", "order": "--order", "random_seed": "--seed"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -26,11 +41,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_out_argument(parser, "workflow", "excitation/, identification/ and closed_loop/")
     parser.add_argument("--signal", choices=SIGNALS, default="prbs", help="default prbs")
     parser.add_argument(
-        "--amplitude", type=float, default=25.0, metavar="MA", help="mA (default 25)"
+        "--amplitude", type=positive_number, default=25.0, metavar="MA", help="mA (default 25)"
     )
     parser.add_argument(
         "--offset",
-        type=float,
+        type=finite_number,
         default=130.0,
         metavar="MA",
         help="mA (default 130: mid-way up the lift range)",
@@ -49,7 +64,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--duration", type=float, default=120.0, metavar="S", help="closed loop, s (default 120)"
     )
-    parser.add_argument("--seed", type=int, default=0, metavar="N", help="default 0")
+    parser.add_argument(
+        "--seed", type=int, default=None, metavar="N", help="default: the config's, 0"
+    )
     add_config_argument(parser)
     parser.add_argument("--json", action="store_true", help="print the summaries as one JSON")
 
@@ -62,7 +79,7 @@ def run_command(args: argparse.Namespace) -> int:
         offset_a=ma_to_a(args.offset),
         duration_s=args.excitation_duration,
         clock_periods=args.clock_periods,
-        labels={"duration_s": "--excitation-duration"},
+        labels=given_labels(args, _EXCITATION_FLAGS),
     )
     result = run_workflow(
         args.out,
@@ -72,18 +89,7 @@ def run_command(args: argparse.Namespace) -> int:
         seed=args.seed,
         config=args.config,
         echo=(lambda line: None) if args.json else print,
-        labels={"closed_loop_s": "--duration", "order": "--order"},
+        labels=given_labels(args, _WORKFLOW_FLAGS),
     )
     print(json.dumps(result) if args.json else format_workflow(result))
     return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Runs the workflow as a script: `python -m maskless.diagrams.commands.workflow --help`."""
-    from maskless.diagrams.cli import main as cli_main
-
-    return cli_main(["workflow", *(sys.argv[1:] if argv is None else argv)])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

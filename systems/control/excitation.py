@@ -33,6 +33,8 @@ from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 from scipy.signal import max_len_seq
 
+from maskless.errors import ConfigError
+
 # scipy.signal.max_len_seq ships feedback taps for registers of 2 to 32 bits.
 _MIN_PRBS_REGISTER_BITS = 2
 _MAX_PRBS_REGISTER_BITS = 32
@@ -70,22 +72,22 @@ class ExcitationSignal:
         times_s = np.array(self.times_s, dtype=float)
         values = np.array(self.values, dtype=float)
         if times_s.ndim != 1 or values.ndim != 1:
-            raise ValueError(
+            raise ConfigError(
                 f"times_s and values must be 1-D arrays; got shapes {times_s.shape} and "
                 f"{values.shape}"
             )
         if times_s.shape != values.shape:
-            raise ValueError(
+            raise ConfigError(
                 f"times_s and values must have the same length; got {times_s.size} and "
                 f"{values.size}"
             )
         if times_s.size < 2:
-            raise ValueError(f"a signal needs at least 2 samples; got {times_s.size}")
+            raise ConfigError(f"a signal needs at least 2 samples; got {times_s.size}")
         if not np.all(np.isfinite(values)):
-            raise ValueError("values must all be finite")
+            raise ConfigError("values must all be finite")
         expected_times_s = np.arange(times_s.size) * self.sample_period_s
         if not np.allclose(times_s, expected_times_s, rtol=0.0, atol=1e-9 * self.sample_period_s):
-            raise ValueError(
+            raise ConfigError(
                 f"times_s must start at 0 with uniform step sample_period_s = "
                 f"{self.sample_period_s} s"
             )
@@ -119,12 +121,12 @@ class ExcitationSignal:
         offset (the operating point) that is not excitation. A square wave gives 1, a sine sqrt(2).
 
         Raises:
-            ValueError: If the signal is constant (zero RMS deviation).
+            ConfigError: If the signal is constant (zero RMS deviation).
         """
         deviation = self.values - np.mean(self.values)
         rms = math.sqrt(float(np.mean(deviation**2)))
         if rms == 0.0:
-            raise ValueError("crest factor is undefined for a constant signal (zero RMS)")
+            raise ConfigError("crest factor is undefined for a constant signal (zero RMS)")
         return float(np.max(np.abs(deviation))) / rms
 
 
@@ -233,7 +235,7 @@ def multisine(
     """
     num_samples = _validated_common(amplitude, duration_s, sample_period_s, seed, offset)
     if phases not in MULTISINE_PHASES:
-        raise ValueError(f"phases must be one of {MULTISINE_PHASES}; got {phases!r}")
+        raise ConfigError(f"phases must be one of {MULTISINE_PHASES}; got {phases!r}")
     period_s = num_samples * sample_period_s
     nyquist_hz = 0.5 / sample_period_s
     # Grid lines strictly between 0 Hz and Nyquist: a sine at Nyquist would sample as +/-cos only.
@@ -246,7 +248,7 @@ def multisine(
         tolerance_hz = 1e-9 / period_s  # band edges that fall on a grid line are included
         selected = harmonics[(grid_hz >= f_lo - tolerance_hz) & (grid_hz <= f_hi + tolerance_hz)]
     if selected.size == 0:
-        raise ValueError(
+        raise ConfigError(
             f"frequency_band_hz {frequency_band_hz} contains no line of the grid k / T with "
             f"spacing {1.0 / period_s} Hz; widen the band or lengthen duration_s"
         )
@@ -277,7 +279,7 @@ def excitation_signal(kind, **kwargs) -> ExcitationSignal:
         **kwargs: Arguments of :func:`uniform_white_noise`, :func:`prbs` or :func:`multisine`.
     """
     if kind not in _DESIGNS:
-        raise ValueError(f"kind must be one of {sorted(_DESIGNS)}; got {kind!r}")
+        raise ConfigError(f"kind must be one of {sorted(_DESIGNS)}; got {kind!r}")
     return _DESIGNS[kind](**kwargs)
 
 
@@ -326,7 +328,7 @@ def add_excitation_source(
         The source's 1-element output port (the valve current, A).
     """
     if not isinstance(signal, ExcitationSignal):
-        raise ValueError(f"signal must be an ExcitationSignal; got {type(signal).__name__}")
+        raise ConfigError(f"signal must be an ExcitationSignal; got {type(signal).__name__}")
     breaks_s = np.append(signal.times_s, _HOLD_UNTIL_S)
     samples = np.append(signal.values, signal.values[-1]).reshape(1, -1)
     trajectory = PiecewisePolynomial.ZeroOrderHold(breaks_s, samples)
@@ -354,10 +356,10 @@ def _validated_common(amplitude, duration_s, sample_period_s, seed, offset):
     _require_finite("duration_s", duration_s)
     _require_finite("offset", offset)
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer; got {seed!r}")
+        raise ConfigError(f"seed must be a non-negative integer; got {seed!r}")
     num_samples = sample_count(duration_s, sample_period_s)
     if num_samples < 2:
-        raise ValueError(
+        raise ConfigError(
             f"duration_s must be at least 2 sample periods ({2 * sample_period_s} s); "
             f"got {duration_s}"
         )
@@ -369,11 +371,11 @@ def validated_band(frequency_band_hz, nyquist_hz):
     try:
         f_lo, f_hi = (float(f) for f in frequency_band_hz)
     except (TypeError, ValueError):
-        raise ValueError(
+        raise ConfigError(
             f"frequency_band_hz must be a pair (f_lo, f_hi) in Hz; got {frequency_band_hz!r}"
         ) from None
     if not (0.0 < f_lo <= f_hi < nyquist_hz):
-        raise ValueError(
+        raise ConfigError(
             f"frequency_band_hz must satisfy 0 < f_lo <= f_hi < Nyquist = {nyquist_hz} Hz; "
             f"got {frequency_band_hz!r}"
         )
@@ -384,20 +386,20 @@ def _validated_range(low, high):
     _require_finite("low", low)
     _require_finite("high", high)
     if not low < high:
-        raise ValueError(f"low must be less than high; got low = {low}, high = {high}")
+        raise ConfigError(f"low must be less than high; got low = {low}, high = {high}")
 
 
 def _require_finite(name, value):
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number; got {value!r}")
+        raise ConfigError(f"{name} must be a finite number; got {value!r}")
 
 
 def _require_positive_finite(name, value):
     _require_finite(name, value)
     if value <= 0:
-        raise ValueError(f"{name} must be positive; got {value!r}")
+        raise ConfigError(f"{name} must be positive; got {value!r}")
 
 
 def _require_positive_int(name, value):
     if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
-        raise ValueError(f"{name} must be a positive integer; got {value!r}")
+        raise ConfigError(f"{name} must be a positive integer; got {value!r}")

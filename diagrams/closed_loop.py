@@ -24,12 +24,7 @@ from pydrake.systems.primitives import (
 )
 from pydrake.trajectories import PiecewisePolynomial
 
-from maskless.diagrams.controller_design import (
-    NominalPneumatic,
-    linear_plant_model,
-    offset_free_design,
-    paper_valve_currents_a,
-)
+from maskless.diagrams.controller_design import NominalPneumatic, offset_free_design
 from maskless.diagrams.scenario import (
     PaperLqg,
     PneumaticPlant,
@@ -37,6 +32,7 @@ from maskless.diagrams.scenario import (
     Scenario,
     kind_name,
 )
+from maskless.diagrams.scenario_plant import linear_plant_model, paper_valve_currents_a
 from maskless.errors import ConfigError
 from maskless.systems.control.offset_free_lqg import add_offset_free_lqg
 from maskless.systems.control.paper_lqg import add_paper_lqg, paper_lqg

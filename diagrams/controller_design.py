@@ -14,11 +14,11 @@ from dataclasses import dataclass
 from maskless.analysis.identification.model_file import load_identified_model
 from maskless.diagrams.scenario import (
     OffsetFreeLqg,
-    PaperPlant,
     PneumaticPlant,
     Scenario,
     shorthand,
 )
+from maskless.diagrams.scenario_plant import linear_plant_model
 from maskless.errors import ModelError
 from maskless.systems.control.offset_free_lqg import (
     OffsetFreeLqgDesign,
@@ -27,11 +27,9 @@ from maskless.systems.control.offset_free_lqg import (
 )
 from maskless.systems.control.valve_allocation import SplitRangeAllocation, current_split_allocation
 from maskless.systems.linear_model import LinearModel
-from maskless.systems.paper_parameters import paper_identified_model
 from maskless.systems.plant.pneumatic_design import pneumatic_allocation, pneumatic_design_model
 from maskless.systems.plant.pneumatic_physics import PneumaticParameters
 from maskless.systems.sensing.depth_sensor import latency_frames
-from maskless.systems.units import ma_to_a
 
 # An identified model's output is the fused estimate as logged at a tick, after that tick's
 # update; the controller reads it one tick later.
@@ -56,35 +54,6 @@ class NominalPneumatic:
         nominal = dataclasses.replace(p, head_mass_kg=p.nominal_head_mass_kg)
         allocation = pneumatic_allocation(nominal, config.offset_free_lqg.outlet_full_open_below_m)
         return cls(nominal, allocation)
-
-
-def paper_valve_currents_a(paper) -> tuple[float, float]:
-    """The paper valve's (starting, saturation) currents (A)."""
-    return ma_to_a(paper.valve_starting_current_ma), ma_to_a(paper.valve_saturation_current_ma)
-
-
-def inlet_current_range_a(config: Scenario) -> tuple[float, float]:
-    """The (starting, saturation) currents of the inlet valve of ``config.plant`` (A).
-
-    That is the pneumatic plant's own valve, or the paper's valve in front of a linear model.
-    """
-    if isinstance(config.plant, PneumaticPlant):
-        inlet = config.pneumatic.inlet
-        return inlet.starting_current_a, inlet.saturation_current_a
-    return paper_valve_currents_a(config.paper)
-
-
-def linear_plant_model(config: Scenario) -> tuple[LinearModel, float | None]:
-    """(model, camera height) of a linear plant.
-
-    The model is the paper's, whose output is the distance from ``config.plant.camera`` (at that
-    camera's height, m), or a model file's, whose output is the head height (camera height None).
-    """
-    if isinstance(config.plant, PaperPlant):
-        # The model was identified on the fused distance in the Kinect v2 frame (Sec. III-B).
-        camera_height_m = config.cameras[config.plant.camera].mount_height_m
-        return paper_identified_model(config.paper), camera_height_m
-    return load_identified_model(config.plant.model_file), None
 
 
 def measurement_delay_samples(config: Scenario) -> int:

@@ -18,10 +18,11 @@ from pydrake.systems.primitives import ConstantVectorSource
 
 from maskless.analysis.metrics import estimate_error_std_m
 from maskless.diagrams.closed_loop import ClosedLoop, LoopDrive, add_plant, assemble_loop
-from maskless.diagrams.controller_design import NominalPneumatic, inlet_current_range_a
+from maskless.diagrams.controller_design import NominalPneumatic
 from maskless.diagrams.request_labels import LabelledRequest
 from maskless.diagrams.run_summary import estimation_start_s
 from maskless.diagrams.scenario import PneumaticPlant, Scenario, kind_name
+from maskless.diagrams.scenario_plant import inlet_current_range_a
 from maskless.diagrams.simulation import SimulationRun, simulate_loop
 from maskless.errors import ConfigError
 from maskless.systems.control.excitation import (

@@ -19,3 +19,9 @@ def output_folder(path: str | Path) -> Path:
     except OSError as error:
         raise ConfigError(f"{path}: cannot make the folder ({error.strerror})") from None
     return path
+
+
+def output_file(path: str | Path) -> Path:
+    """``path`` with its folder made (``output_folder``), ready to be written."""
+    path = Path(path)
+    return output_folder(path.parent) / path.name

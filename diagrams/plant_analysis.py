@@ -60,17 +60,23 @@ class StabilityRequest(LabelledRequest):
 # --- operating-range ------------------------------------------------------------------------------
 
 
-def analyze_operating_range(scenario: Scenario, points: int = 22, out: str | Path | None = None):
+def analyze_operating_range(
+    scenario: Scenario,
+    points: int = 22,
+    out: str | Path | None = None,
+    points_label: str = "points",
+):
     """Sweeps each valve's current: steady lift, pressure, and Drake's linearisation there.
 
     Each valve takes ``points`` currents from starting to saturation (the inlet with the outlet
     shut; the outlet with the inlet fully open). Returns the JSON-ready report; with ``out``, also
     writes OUT/operating_range.json and OUT/operating_range.png, named under ``files``.
+    ``points_label`` is what the user called ``points`` (a flag), for the message.
     """
     from maskless.analysis.operating_range import default_operating_ranges
 
     if points < 2:
-        raise ConfigError(f"points = {points}: expected at least 2 currents per valve")
+        raise ConfigError(f"{points_label} {points}: expected at least 2 currents per valve")
     ranges = default_operating_ranges(scenario.pneumatic, points)
     report = operating_range_report(ranges)
     if out is not None:

@@ -22,7 +22,7 @@ from maskless.diagrams.closed_loop import (
     logged_signals,
     set_plant_parameters,
 )
-from maskless.diagrams.output_folder import output_folder
+from maskless.diagrams.output_folder import output_file, output_folder
 from maskless.diagrams.run_recording import signal_channels
 from maskless.diagrams.run_summary import summarize, summary_with_timing
 from maskless.diagrams.scenario import Scenario
@@ -72,7 +72,7 @@ class SimulationRun:
         """Writes the run's recording (topics in ``maskless.recording``) to ``path``."""
         from maskless.recording import write_recording
 
-        path = output_folder(Path(path).parent) / Path(path).name
+        path = output_file(path)
         write_recording(path, self.recording_channels())
         return path
 
@@ -106,7 +106,7 @@ class SimulationRun:
         """
         from maskless.analysis.closed_loop_plots import plot_closed_loop
 
-        path = output_folder(Path(path).parent) / Path(path).name
+        path = output_file(path)
         return plot_closed_loop(path, **self.plot_arguments(show_tolerance))
 
 

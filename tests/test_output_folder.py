@@ -2,7 +2,7 @@
 
 import pytest
 
-from maskless.diagrams.output_folder import output_folder
+from maskless.diagrams.output_folder import output_file, output_folder
 from maskless.errors import ConfigError
 
 
@@ -18,3 +18,8 @@ def test_a_file_in_the_way_is_named(tmp_path):
         output_folder(tmp_path / "taken")
     with pytest.raises(ConfigError, match="taken/below"):
         output_folder(tmp_path / "taken" / "below")
+
+
+def test_a_file_gets_its_folder_made(tmp_path):
+    path = output_file(tmp_path / "new" / "run.mcap")
+    assert path == tmp_path / "new" / "run.mcap" and path.parent.is_dir() and not path.exists()

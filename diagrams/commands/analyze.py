@@ -116,10 +116,8 @@ def stability_request(args: argparse.Namespace) -> StabilityRequest:
 def run_command(args: argparse.Namespace) -> int:
     """`maskless analyze`: returns the process exit code."""
     if args.analysis == "operating-range":
-        if args.points < 2:
-            raise ConfigError(f"--points {args.points}: expected at least 2 currents per valve")
         scenario = scenario_from_flags(args, {})
-        report = analyze_operating_range(scenario, args.points, out=args.out)
+        report = analyze_operating_range(scenario, args.points, args.out, points_label="--points")
         text = format_operating_range(report, scenario.pneumatic.head_mass_kg)
     else:
         request = stability_request(args)

@@ -30,7 +30,11 @@ from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 from maskless.analysis.metrics import tracking_metrics
 from maskless.diagrams.closed_loop import add_plant
 from maskless.diagrams.controller_design import NominalPneumatic
-from maskless.diagrams.scenario import controller_from_shorthand, load_scenario
+from maskless.diagrams.scenario import (
+    cameras_measured_by,
+    controller_from_shorthand,
+    load_scenario,
+)
 from maskless.diagrams.simulation import simulate
 from maskless.systems.plant.pneumatic_design import steady_lift_curve
 from maskless.systems.units import m_to_mm
@@ -122,8 +126,10 @@ def fastest_entry_s(base, nominal, trial: dict) -> float | None:
     return float(log.sample_times()[np.argmax(inside)]) if inside.any() else None
 
 
-def run_trial(base, nominal, seed: int, trial: dict, controller: str) -> dict:
+def run_trial(base, nominal, seed: int, trial: dict, controller: str, rendered=False) -> dict:
     config = trial_config(base, seed, trial, controller)
+    if rendered:
+        config.cameras = cameras_measured_by(config.cameras, rendered=True)
     run = simulate(config, nominal=nominal)
     head = run.signals["head_height_m"]
     reference = run.signals["reference_head_height_m"].values[0]
@@ -226,6 +232,12 @@ def main():
     parser.add_argument("--trials", type=int, default=24, help="Monte Carlo trials (>= 20)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the trial draws")
     parser.add_argument("--plot", type=Path, default=Path("accuracy.png"), help="plot path")
+    parser.add_argument(
+        "--rendered-trials",
+        type=int,
+        default=4,
+        help="the first N trials also run with rendered cameras (offset-free LQG)",
+    )
     args = parser.parse_args()
     if args.trials < 1:
         raise ValueError(f"--trials {args.trials}: expected a positive count")
@@ -243,6 +255,11 @@ def main():
         for controller in CONTROLLERS:
             results[controller].append(run_trial(base, nominal, index, trial, controller))
         print(f"trial {index + 1}/{len(trials)}", file=sys.stderr, flush=True)
+    subset = range(min(args.rendered_trials, len(trials)))
+    rendered = [
+        run_trial(base, nominal, index, trials[index], CONTROLLERS[0], rendered=True)
+        for index in subset
+    ]
     wall_s = time.perf_counter() - start
     plot(args.plot, trials, results)
     figures = {
@@ -252,6 +269,18 @@ def main():
         "step_mm_range": [m_to_mm(s) for s in STEP_RANGE_M],
         "up_steps": int(sum(t["step_m"] > 0 for t in trials)),
         "per_controller": {c: aggregate(results[c], bounds_s) for c in CONTROLLERS},
+        # The same first trials, same seeds, with the cameras rendered instead of modelled.
+        "rendered_cameras": {
+            "trials": len(rendered),
+            "offset-free-lqg, rendered": aggregate(rendered, bounds_s[: len(rendered)])
+            if rendered
+            else None,
+            "offset-free-lqg, model, same trials": aggregate(
+                results[CONTROLLERS[0]][: len(rendered)], bounds_s[: len(rendered)]
+            )
+            if rendered
+            else None,
+        },
         "valves_flat_out_bound_s": {
             "median": float(np.median([b for b in bounds_s if b is not None])),
             "worst": max((b for b in bounds_s if b is not None), default=None),

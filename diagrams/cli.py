@@ -52,6 +52,26 @@ def add_config_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_sensor_arguments(parser: argparse.ArgumentParser) -> None:
+    """The --sensors and --image-rate flags of the commands that run the cameras."""
+    parser.add_argument(
+        "--sensors",
+        choices=("model", "rendered"),
+        default=None,
+        help="model: the cameras' measurement formulas (fast); rendered: Drake renders each "
+        "camera's images and a Haar cascade finds the face in them (default: the config's "
+        "cameras.NAME.rendering.enabled, model)",
+    )
+    parser.add_argument(
+        "--image-rate",
+        type=positive_number,
+        default=None,
+        metavar="HZ",
+        help="rendered camera images per second per camera in the recording (default: the "
+        "config's camera_image_rate_hz, 2)",
+    )
+
+
 def given_labels(args: argparse.Namespace, flag_of_field: dict[str, str]) -> dict[str, str]:
     """Field -> flag, for the flags the user actually typed: an error names no other flag."""
     given = getattr(args, "given_flags", frozenset())
@@ -95,11 +115,13 @@ def scenario_from_flags(args: argparse.Namespace, flag_fields: dict[str, str]):
         args: the parsed flags; ``args.config`` names the scenario file (or None).
         flag_fields: flag -> the scenario field it sets (``{"--duration": "duration_s"}``).
             ``--plant`` and ``--controller`` take their shorthands (``identified:MODEL.yaml``).
+            ``args.sensors``, when given, renders every camera or none (``--sensors``).
 
     Raises:
         ConfigError: naming the file and the flags actually given, and the field at fault.
     """
     from maskless.diagrams.scenario import (
+        cameras_measured_by,
         controller_from_shorthand,
         plant_from_shorthand,
         scenario_with_overrides,
@@ -113,6 +135,12 @@ def scenario_from_flags(args: argparse.Namespace, flag_fields: dict[str, str]):
             continue
         overrides[field_name] = parse[flag](value) if flag in parse else value
         labels[field_name] = flag
+    sensors = getattr(args, "sensors", None)
+    if sensors is not None:
+        # --sensors changes every camera the file (and the other flags) configured.
+        cameras = scenario_with_overrides(args.config, overrides, labels).cameras
+        overrides["cameras"] = cameras_measured_by(cameras, rendered=sensors == "rendered")
+        labels["cameras"] = "--sensors"
     return scenario_with_overrides(args.config, overrides, labels)
 
 

@@ -10,6 +10,7 @@ A sweep over pneumatic plants (a Monte Carlo over patients' heads) builds one lo
 draw's constants into its Context (``set_plant_parameters``) instead of building a loop per draw.
 """
 
+import functools
 from collections.abc import Collection
 from dataclasses import dataclass, field
 
@@ -24,6 +25,7 @@ from pydrake.systems.primitives import (
 )
 from pydrake.trajectories import PiecewisePolynomial
 
+from maskless.camera_images import CameraFrame
 from maskless.diagrams.controller_design import NominalPneumatic, offset_free_design
 from maskless.diagrams.scenario import (
     PaperLqg,
@@ -37,6 +39,7 @@ from maskless.errors import ConfigError
 from maskless.systems.control.offset_free_lqg import add_offset_free_lqg
 from maskless.systems.control.paper_lqg import add_paper_lqg, paper_lqg
 from maskless.systems.linear_model import LinearModel
+from maskless.systems.named_symbolic_system import PortMap
 from maskless.systems.paper_parameters import paper_filter_variances_si
 from maskless.systems.plant.linear_model_plant import (
     add_linear_model_plant,
@@ -48,8 +51,10 @@ from maskless.systems.plant.pneumatic_plant import (
     equilibrium_state,
     set_pneumatic_parameters,
 )
+from maskless.systems.sensing.camera_scene import add_camera_scene
 from maskless.systems.sensing.depth_sensor import add_depth_sensor
 from maskless.systems.sensing.local_kalman_filter import add_local_kalman_filter
+from maskless.systems.sensing.rendered_depth_sensor import add_rendered_depth_sensor
 from maskless.systems.sensing.track_fusion import add_track_fusion
 
 # Far beyond any run, so the last reference value holds for the rest of the simulation.
@@ -82,6 +87,8 @@ class ClosedLoop:
         sensor_names: the cameras, in order.
         loggers: exported output name -> (VectorLogSink, the rows of its log that hold that
             output); empty when built without recording.
+        frames: the rendered cameras' recorded frames, appended while the loop runs (a
+            publish event's side effect); empty without rendered cameras or recording.
     """
 
     diagram: Diagram
@@ -92,6 +99,7 @@ class ClosedLoop:
     start_height_m: float
     sensor_names: list[str]
     loggers: dict[str, tuple[VectorLogSink, slice]] = field(default_factory=dict)
+    frames: list[CameraFrame] = field(default_factory=list)
 
 
 @dataclass
@@ -190,19 +198,70 @@ class SensingChain:
     fusion: object
 
 
+def add_cameras(
+    builder: DiagramBuilder,
+    config: Scenario,
+    head_height: OutputPort,
+    frames: list[CameraFrame] | None = None,
+) -> dict[str, PortMap]:
+    """Adds every camera watching ``head_height``: a measurement model, or a rendered camera.
+
+    A camera whose ``rendering.enabled`` is set renders the scene (added once, for all of them)
+    and finds the face in its images; with ``frames``, each rendered camera appends a frame to it
+    ``config.camera_image_rate_hz`` times a second (the nearest whole number of frames apart).
+    """
+    sensors = {}
+    scene = None
+    for name, camera in config.cameras.items():
+        if not camera.rendering.enabled:
+            sensors[name] = add_depth_sensor(builder, name, camera)
+            builder.Connect(head_height, sensors[name].inputs["head_height_m"])
+            continue
+        if scene is None:
+            scene = add_camera_scene(builder, head_height)
+        sink = None if frames is None else functools.partial(_append_frame, frames)
+        sensors[name] = add_rendered_depth_sensor(
+            builder,
+            name,
+            camera,
+            scene,
+            frame_sink=sink,
+            record_every_frames=max(1, round(camera.frame_rate_hz / config.camera_image_rate_hz)),
+        )
+    return sensors
+
+
+def _append_frame(frames: list, camera: str, time_s: float, rgb, measurement) -> None:
+    frames.append(
+        CameraFrame(
+            camera=camera,
+            time_s=time_s,
+            rgb=rgb,
+            face_box=measurement.face_box,
+            eye_boxes=measurement.eye_boxes,
+            region_box=measurement.region_box,
+            distance_m=measurement.distance_m,
+            valid=measurement.valid,
+        )
+    )
+
+
 def add_sensing_chain(
-    builder: DiagramBuilder, config: Scenario, head_height: OutputPort, start_height_m
+    builder: DiagramBuilder,
+    config: Scenario,
+    head_height: OutputPort,
+    start_height_m,
+    frames: list[CameraFrame] | None = None,
 ) -> SensingChain:
     """Adds every camera watching ``head_height``, a local Kalman filter on each, and the fusion.
 
     The filters start at ``start_height_m``; the track-to-track fusion combines their tracks.
+    Rendered cameras append recorded frames to ``frames`` (``add_cameras``).
     """
     variances = paper_filter_variances_si(config.paper)
-    sensor_names = list(config.cameras)
+    sensors = add_cameras(builder, config, head_height, frames)
     filters = {}
-    sensors = {}
     for name, sensor_config in config.cameras.items():
-        sensor = add_depth_sensor(builder, name, sensor_config)
         local_filter = add_local_kalman_filter(
             builder,
             f"{name}_filter",
@@ -214,10 +273,10 @@ def add_sensing_chain(
             valid_range_m=(sensor_config.min_range_m, sensor_config.max_range_m),
             config=config.local_filter,
         )
-        builder.Connect(head_height, sensor.inputs["head_height_m"])
         for port in ("distance_m", "valid"):
-            builder.Connect(sensor.outputs[port], local_filter.inputs[port])
-        sensors[name], filters[name] = sensor, local_filter
+            builder.Connect(sensors[name].outputs[port], local_filter.inputs[port])
+        filters[name] = local_filter
+    sensor_names = list(config.cameras)
     fusion = add_track_fusion(builder, sensor_names, name="fusion")
     for name, local_filter in filters.items():
         for port in ("estimated_state", "covariance"):
@@ -385,7 +444,10 @@ def assemble_loop(
     """
     builder.Connect(drive.inlet, plant.inlet)
     builder.Connect(drive.outlet, plant.outlet)
-    sensing = add_sensing_chain(builder, config, plant.head_height, plant.start_height_m)
+    frames: list[CameraFrame] = []
+    sensing = add_sensing_chain(
+        builder, config, plant.head_height, plant.start_height_m, frames if record else None
+    )
     if drive.controller is not None:
         controller = drive.controller
         builder.Connect(
@@ -416,6 +478,7 @@ def assemble_loop(
         start_height_m=plant.start_height_m,
         sensor_names=sensing.sensor_names,
         loggers=loggers,
+        frames=frames,
     )
 
 

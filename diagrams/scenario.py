@@ -13,6 +13,7 @@ The command line's shorthands (``--plant identified:MODEL.yaml``) build the same
 (``plant_from_shorthand``), and ``shorthand`` writes a variant back as its flag.
 """
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -158,6 +159,16 @@ def shorthand(choice: Plant | Controller) -> str:
     raise TypeError(f"not a plant or controller variant: {choice!r}")
 
 
+def cameras_measured_by(cameras: dict[str, Camera], rendered: bool) -> dict[str, Camera]:
+    """``cameras`` with every one rendered (``rendered``) or modelled, the rest as they were."""
+    return {
+        name: dataclasses.replace(
+            camera, rendering=dataclasses.replace(camera.rendering, enabled=rendered)
+        )
+        for name, camera in cameras.items()
+    }
+
+
 def kind_name(choice: Plant | Controller) -> str:
     """A variant's name without its model file: "pneumatic", "identified", "offset-free-lqg"."""
     return shorthand(choice).partition(":")[0]
@@ -227,6 +238,7 @@ class Scenario:
         cameras: camera name -> its model (``!KinectV1Config``, ``!KinectV2Config``); each gets
             its own local Kalman filter, and the fusion fuses them all.
         start_lift_m: where the pneumatic plant's head starts, at rest (m of lift).
+        camera_image_rate_hz: images per second each rendered camera adds to the recording.
     """
 
     random_seed: int = 0
@@ -234,6 +246,7 @@ class Scenario:
     plant: Plant = field(default_factory=PneumaticPlant)
     controller: Controller = field(default_factory=OffsetFreeLqg)
     start_lift_m: float = UNSET
+    camera_image_rate_hz: float = UNSET
     reference: ReferenceConfig = field(default_factory=ReferenceConfig)
     cameras: dict[str, Camera] = field(default_factory=dict)
     local_filter: LocalFilterConfig = field(default_factory=LocalFilterConfig)
@@ -340,6 +353,12 @@ def validate_scenario(config: Scenario) -> None:
         "positive, increasing times",
     )
     _validate_cameras(config)
+    require(
+        0 < config.camera_image_rate_hz < math.inf,
+        "camera_image_rate_hz",
+        config.camera_image_rate_hz,
+        "a positive, finite rate",
+    )
     for field_name in ("initial_position_std_m", "initial_velocity_std_m_s"):
         value = getattr(config.local_filter, field_name)
         require(value > 0, f"local_filter.{field_name}", value, "a positive std")
@@ -395,8 +414,9 @@ def validate_scenario(config: Scenario) -> None:
         )
 
 
-# Names the closed loop gives its own systems; a camera's systems are NAME, NAME.noise and
-# NAME_filter, so a camera may take none of these (nor a name starting with "log_").
+# Names the closed loop gives its own systems; a camera's systems are NAME, NAME.noise (rendered:
+# NAME.camera, NAME.frame_seed, NAME.frames) and NAME_filter, so a camera may take none of these
+# (nor a name starting with "log_").
 _LOOP_SYSTEM_NAMES = {
     "reference",
     "fusion",
@@ -405,6 +425,8 @@ _LOOP_SYSTEM_NAMES = {
     "valve_current_limits",
     "outlet_valve_shut",
     "excitation",
+    "scene_graph",
+    "head_pose",
     "pneumatic_plant",
     "paper_plant",
     "identified_plant",

@@ -9,12 +9,13 @@ import functools
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import Simulator
 
+from maskless.camera_images import CameraFrame
 from maskless.diagrams.closed_loop import (
     ClosedLoop,
     Signal,
@@ -44,12 +45,15 @@ class SimulationRun:
         signals: exported output name -> its logged samples (``head_height_m``,
             ``reference_head_height_m``, ``fusion.estimated_state``, ...).
         wall_time_s: how long the simulation took (s), not counting the build.
+        frames: the rendered cameras' recorded images with what was found in them, in time
+            order (``scenario.camera_image_rate_hz`` per camera); empty without rendered cameras.
     """
 
     scenario: Scenario
     closed_loop: ClosedLoop
     signals: dict[str, Signal]
     wall_time_s: float
+    frames: list[CameraFrame] = field(default_factory=list)
 
     @functools.cached_property
     def metrics(self) -> dict:
@@ -73,7 +77,7 @@ class SimulationRun:
         from maskless.recording import write_recording
 
         path = output_file(path)
-        write_recording(path, self.recording_channels())
+        write_recording(path, self.recording_channels(), frames=self.frames)
         return path
 
     def plot_arguments(self, show_tolerance: bool = True) -> dict:
@@ -115,7 +119,7 @@ def simulate(
     *,
     record: bool = True,
     progress: Callable[[float, float], None] | None = None,
-    on_chunk: Callable[[dict[str, Signal]], None] | None = None,
+    on_chunk: Callable[[dict[str, Signal], list[CameraFrame]], None] | None = None,
     nominal=None,
 ) -> SimulationRun:
     """Builds and simulates ``scenario``'s closed loop.
@@ -126,8 +130,8 @@ def simulate(
         scenario: a validated scenario (``load_scenario``).
         record: log every exported output (False measures the bare diagram).
         progress: called as progress(simulated_s, duration_s) after each chunk of the run.
-        on_chunk: called after each chunk with the samples logged since the previous call (a
-            recording can be written while the loop runs).
+        on_chunk: called after each chunk with the samples logged and the camera frames recorded
+            since the previous call (a recording can be written while the loop runs).
         nominal: ``closed_loop.NominalPneumatic.of(scenario)`` when the caller has it already (a
             Monte Carlo over head masses shares one).
     """
@@ -140,7 +144,7 @@ def simulate_loop(
     scenario: Scenario,
     *,
     progress: Callable[[float, float], None] | None = None,
-    on_chunk: Callable[[dict[str, Signal]], None] | None = None,
+    on_chunk: Callable[[dict[str, Signal], list[CameraFrame]], None] | None = None,
     plant_parameters: PneumaticParameters | None = None,
 ) -> SimulationRun:
     """Simulates a built loop and collects its logs (see ``simulate`` for the callbacks).
@@ -155,18 +159,24 @@ def simulate_loop(
     closed_loop.diagram.SetRandomContext(context, RandomGenerator(scenario.random_seed))
     if plant_parameters is not None:
         set_plant_parameters(closed_loop.diagram, context, plant_parameters)
+    frames = closed_loop.frames
+    frames.clear()  # a loop simulated again records afresh
     start = time.perf_counter()
     simulator.Initialize()
     chunks = PROGRESS_CHUNKS if progress is not None or on_chunk is not None else 1
     taken: dict = {}  # per log sink, the samples already handed to on_chunk
+    frames_taken = 0
     for chunk in range(1, chunks + 1):
         simulator.AdvanceTo(scenario.duration_s * chunk / chunks)
         if progress is not None:
             progress(context.get_time(), scenario.duration_s)
         if on_chunk is not None:
-            on_chunk(logged_signals(closed_loop, context, taken))
+            on_chunk(logged_signals(closed_loop, context, taken), frames[frames_taken:])
+            frames_taken = len(frames)
     wall_time_s = time.perf_counter() - start
-    return SimulationRun(scenario, closed_loop, logged_signals(closed_loop, context), wall_time_s)
+    return SimulationRun(
+        scenario, closed_loop, logged_signals(closed_loop, context), wall_time_s, list(frames)
+    )
 
 
 def simulate_to_files(scenario: Scenario, out: str | Path) -> dict:

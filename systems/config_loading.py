@@ -203,7 +203,8 @@ def check_override(schema, field_name: str, value, source: str) -> None:
 def find_unset_fields(config, prefix: str = "") -> list[str]:
     """Dotted names of float fields still at ``UNSET`` (NaN) anywhere in a dataclass tree.
 
-    Mapping values are included.
+    Mapping values are included. A section whose ``enabled`` field is False needs nothing else set
+    (a camera that is not rendered needs no rendering settings).
     """
     unset = []
     for field in dataclasses.fields(config):
@@ -212,7 +213,8 @@ def find_unset_fields(config, prefix: str = "") -> list[str]:
         for key, item in items:
             name = f"{prefix}{field.name}" + ("" if key is None else f".{key}")
             if dataclasses.is_dataclass(item):
-                unset += find_unset_fields(item, f"{name}.")
+                if getattr(item, "enabled", True) is not False:
+                    unset += find_unset_fields(item, f"{name}.")
             elif isinstance(item, float) and math.isnan(item):
                 unset.append(name)
     return unset

@@ -20,6 +20,8 @@ class PaperParameters:
     acceleration_variance_mm2: float = UNSET
     measurement_variance_kinect_v1_mm2: float = UNSET
     measurement_variance_kinect_v2_mm2: float = UNSET
+    measured_noise_kinect_v1_mm2: float = UNSET
+    measured_noise_kinect_v2_mm2: float = UNSET
     sample_period_s: float = UNSET
     A: list[list[float]] = field(default_factory=list)
     B_mm_per_ma: list[float] = field(default_factory=list)
@@ -62,6 +64,8 @@ def validate_paper_parameters(paper: PaperParameters) -> None:
         "acceleration_variance_mm2",
         "measurement_variance_kinect_v1_mm2",
         "measurement_variance_kinect_v2_mm2",
+        "measured_noise_kinect_v1_mm2",
+        "measured_noise_kinect_v2_mm2",
         "valve_saturation_current_ma",
     ]
     for field_name in positive:

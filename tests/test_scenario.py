@@ -6,6 +6,7 @@ import yaml
 
 from maskless.diagrams.scenario import (
     IdentifiedPlant,
+    cameras_measured_by,
     controller_from_shorthand,
     load_scenario,
     plant_from_shorthand,
@@ -229,3 +230,47 @@ def test_an_override_of_the_wrong_type_or_name_is_refused(config, overrides, mes
         overrides = {"cameras": {k: v or camera for k, v in overrides["cameras"].items()}}
     with pytest.raises(ConfigError, match=message):
         load_scenario(**overrides)
+
+
+def test_sensors_flag_form_renders_every_camera_or_none(config):
+    rendered = cameras_measured_by(config.cameras, rendered=True)
+    assert all(camera.rendering.enabled for camera in rendered.values())
+    assert not any(camera.rendering.enabled for camera in config.cameras.values())  # a copy
+    modelled = cameras_measured_by(rendered, rendered=False)
+    assert not any(camera.rendering.enabled for camera in modelled.values())
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        (
+            "cameras:\n  kinect_v1:\n    rendering:\n      enabled: true\n"
+            "      vertical_fov_deg: 190.0\n",
+            r"cameras\.kinect_v1\.rendering\.vertical_fov_deg = 190\.0: expected an angle",
+        ),
+        (
+            "cameras:\n  kinect_v2:\n    rendering:\n      enabled: true\n      color_scale: 0\n",
+            r"cameras\.kinect_v2\.rendering\.color_scale = 0",
+        ),
+        (
+            "cameras:\n  kinect_v2:\n    rendering:\n      enabled: true\n"
+            "      position_m: [0.1]\n",
+            r"cameras\.kinect_v2\.rendering\.position_m = \[0\.1\]: expected \[x, y\]",
+        ),
+        ("camera_image_rate_hz: 0\n", r"camera_image_rate_hz = 0"),
+    ],
+)
+def test_bad_rendering_settings_are_refused_naming_the_field(tmp_path, text, message):
+    path = tmp_path / "rendered.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=message):
+        load_scenario(path)
+
+
+def test_a_rendered_camera_needs_its_rendering_settings_a_modelled_one_does_not(tmp_path):
+    path = tmp_path / "three.yaml"
+    path.write_text(THIRD_CAMERA)
+    assert not load_scenario(path).cameras["kinect_v3"].rendering.enabled
+    path.write_text(THIRD_CAMERA + "    rendering:\n      enabled: true\n")
+    with pytest.raises(ConfigError, match=r"cameras\.kinect_v3\.rendering\.image_width_px"):
+        load_scenario(path)

@@ -16,6 +16,7 @@ import json
 from maskless.diagrams.cli import (
     add_config_argument,
     add_out_argument,
+    add_sensor_arguments,
     finite_number,
     given_labels,
     positive_number,
@@ -101,6 +102,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="pneumatic, paper or identified:MODEL.yaml (default: the config's, pneumatic)",
     )
     add_config_argument(parser)
+    add_sensor_arguments(parser)
     add_out_argument(parser, "excitation", "run.mcap and run.png")
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
 
@@ -122,7 +124,10 @@ def excitation_request(args: argparse.Namespace) -> ExcitationRequest:
 def run_command(args: argparse.Namespace) -> int:
     """`maskless excite`: returns the process exit code."""
     request = excitation_request(args)
-    scenario = scenario_from_flags(args, {"--seed": "random_seed", "--plant": "plant"})
+    scenario = scenario_from_flags(
+        args,
+        {"--seed": "random_seed", "--plant": "plant", "--image-rate": "camera_image_rate_hz"},
+    )
     summary = excite_to_files(scenario, request, args.out)
     print(json.dumps(summary) if args.json else format_excitation_summary(summary))
     return 0

@@ -10,7 +10,12 @@ default the plant is the first-principles pneumatic robot and the controller the
 import argparse
 import json
 
-from maskless.diagrams.cli import add_config_argument, add_out_argument, scenario_from_flags
+from maskless.diagrams.cli import (
+    add_config_argument,
+    add_out_argument,
+    add_sensor_arguments,
+    scenario_from_flags,
+)
 from maskless.diagrams.run_summary import format_summary
 from maskless.diagrams.simulation import simulate_to_files
 
@@ -33,6 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_out_argument(parser, "out", "run.mcap and run.png")
     add_config_argument(parser)
+    add_sensor_arguments(parser)
     parser.add_argument(
         "--plant",
         default=None,
@@ -63,6 +69,7 @@ def run_command(args: argparse.Namespace) -> int:
             "--seed": "random_seed",
             "--plant": "plant",
             "--controller": "controller",
+            "--image-rate": "camera_image_rate_hz",
         },
     )
     summary = simulate_to_files(scenario, args.out)

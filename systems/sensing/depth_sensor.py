@@ -11,11 +11,13 @@ resolution); a frame outside the working range or dropped (probability ``dropout
 zeros in the authors' logs) reads 0 with ``valid`` = 0, as a Kinect reports invalid pixels.
 """
 
+import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from statistics import NormalDist
 from typing import ClassVar
 
+import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.symbolic import (
     Expression,
@@ -47,6 +49,39 @@ DISPARITY_INTERCEPT = 3.3309
 
 
 @dataclass
+class CameraRenderingConfig:
+    """How a camera is rendered when its measurement comes from images (``rendered_depth_sensor``).
+
+    Colour and depth share one pose and one set of intrinsics (the colour image registered to the
+    depth image, as the Kinect SDKs map them), so a pixel means the same place in both.
+
+    Attributes:
+        enabled: measure by rendering images and finding the face in them, instead of the
+            measurement model's formulas (``--sensors rendered`` sets it for every camera).
+        image_width_px: image width (pixels).
+        image_height_px: image height (pixels).
+        horizontal_fov_deg: horizontal field of view (degrees).
+        vertical_fov_deg: vertical field of view (degrees).
+        position_m: the camera's [x, y] in the table frame (m), x across the patient, y along the
+            patient towards the top of the head; the face's centre is at [0, 0]. The camera looks
+            straight down from ``mount_height_m``.
+        invalid_pixel_probability: probability that a depth pixel reads 0 (shadowed or unmatched).
+        color_scale: the colour image is rendered at this fraction of the camera's resolution:
+            the size the face search runs at (the paper downsampled before detecting, Sec.
+            III-A), without rendering the pixels it would throw away. Depth keeps the full size.
+    """
+
+    enabled: bool = False
+    image_width_px: int = UNSET
+    image_height_px: int = UNSET
+    horizontal_fov_deg: float = UNSET
+    vertical_fov_deg: float = UNSET
+    position_m: list[float] = UNSET
+    invalid_pixel_probability: float = UNSET
+    color_scale: float = UNSET
+
+
+@dataclass
 class DepthSensorConfig:
     """What both camera models share. Every field is set in assets/simulation.yaml.
 
@@ -59,6 +94,7 @@ class DepthSensorConfig:
         incidence_angle_rad: angle between the camera axis and the face normal (rad).
         min_range_m: nearest valid distance (m).
         max_range_m: farthest valid distance (m).
+        rendering: whether and how the camera is rendered instead of modelled.
     """
 
     mount_height_m: float = UNSET
@@ -68,6 +104,7 @@ class DepthSensorConfig:
     incidence_angle_rad: float = UNSET
     min_range_m: float = UNSET
     max_range_m: float = UNSET
+    rendering: CameraRenderingConfig = field(default_factory=CameraRenderingConfig)
 
 
 @dataclass
@@ -120,13 +157,17 @@ def kinect_v1_quantised_distance_m(distance_m):
 
 
 def sqrt_any(value):
-    """The square root of a float, or of a ``pydrake.symbolic`` expression or variable."""
-    return sqrt(value) if isinstance(value, Expression | Variable) else math.sqrt(value)
+    """The square root of a float, a numpy array, or a ``pydrake.symbolic`` expression."""
+    if isinstance(value, Expression | Variable):
+        return sqrt(value)
+    return np.sqrt(value) if isinstance(value, np.ndarray) else math.sqrt(value)
 
 
 def floor_any(value):
-    """The floor of a float, or of a ``pydrake.symbolic`` expression or variable."""
-    return floor(value) if isinstance(value, Expression | Variable) else math.floor(value)
+    """The floor of a float, a numpy array, or a ``pydrake.symbolic`` expression."""
+    if isinstance(value, Expression | Variable):
+        return floor(value)
+    return np.floor(value) if isinstance(value, np.ndarray) else math.floor(value)
 
 
 def latency_frames(config: DepthSensorConfig) -> int:
@@ -138,7 +179,7 @@ def validate_sensor_config(name: str, config: DepthSensorConfig) -> None:
     """Raises ConfigError naming the field when a sensor's parameters are out of range."""
     for in_range, field_name, expected in _range_checks(config):
         if not in_range:
-            value = getattr(config, field_name)
+            value = functools.reduce(getattr, field_name.split("."), config)
             raise ConfigError(f"{name}.{field_name} = {value}: expected {expected}")
 
 
@@ -175,6 +216,33 @@ def _range_checks(config: DepthSensorConfig):
             "a positive time constant",
         )
         yield config.resolution_m > 0, "resolution_m", "a positive step"
+    if config.rendering.enabled:
+        yield from _rendering_checks(config.rendering)
+
+
+def _rendering_checks(rendering: CameraRenderingConfig):
+    """(in range, field, what was expected) for a rendered camera's settings."""
+    for field_name in ("image_width_px", "image_height_px"):
+        size = getattr(rendering, field_name)
+        yield (
+            16 <= size <= 4096,
+            f"rendering.{field_name}",
+            "a whole number of pixels in [16, 4096]",
+        )
+    for field_name in ("horizontal_fov_deg", "vertical_fov_deg"):
+        angle = getattr(rendering, field_name)
+        yield 0 < angle < 180, f"rendering.{field_name}", "an angle in (0, 180) degrees"
+    yield (
+        len(rendering.position_m) == 2 and all(map(math.isfinite, rendering.position_m)),
+        "rendering.position_m",
+        "[x, y], two finite numbers (m)",
+    )
+    yield (
+        0.0 <= rendering.invalid_pixel_probability < 1.0,
+        "rendering.invalid_pixel_probability",
+        "a probability in [0, 1)",
+    )
+    yield 0 < rendering.color_scale <= 1, "rendering.color_scale", "a factor in (0, 1]"
 
 
 def add_depth_sensor(builder: DiagramBuilder, name: str, config: DepthSensorConfig) -> PortMap:

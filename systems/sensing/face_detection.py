@@ -1,0 +1,213 @@
+"""Finding the face and its eyes in a camera image, and reading the face's depth (paper Sec. III-A).
+
+As in the paper: Viola-Jones Haar cascades (OpenCV's stock frontal-face and eye cascades) find the
+face in a downsampled grey image, then the eyes within the face (enlarged again, so the eyes are as
+large as the eye cascade needs). As a tracker would, the face is
+first searched for near where it was in the last frame, at about its last size, and the whole image
+is searched only when that fails.
+
+The depth is read in the eye band: the box spanning both eyes, or, when the eyes are not both
+found, the middle of the face box (where the eyes are). It lies inside the face by construction,
+away from the hair and background at the face box's corners. The statistic is the interquartile
+mean of the region's valid pixels (``scipy.stats.trim_mean``, a quarter cut from each end): it
+ignores holes (0) and up to a quarter of stray pixels at either end, as a median would, but where
+a median of Kinect v1 depths snaps to one 11-bit disparity level (up to half a step, ~1 mm, off
+at 0.83 m), the mean of the middle half averages across levels.
+
+No face, a face at the image's edge, or too few valid depth pixels gives no distance (NaN) and
+``valid = False``, never a number.
+"""
+
+import dataclasses
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.stats import trim_mean
+
+from maskless.errors import MasklessError
+
+# (x, y, width, height) in pixels.
+Box = tuple[int, int, int, int]
+
+FACE_CASCADE = "haarcascade_frontalface_default.xml"
+EYE_CASCADE = "haarcascade_eye.xml"
+# OpenCV's usual scale step; 4 neighbours (OpenCV's default is 3) drops the odd false face in the
+# background without losing the face itself on rendered frames (tests/test_face_detection.py).
+SCALE_FACTOR = 1.1
+MIN_NEIGHBORS = 4
+# A tracked face is searched for within this fraction of its size around its last box, at sizes
+# within this factor of its last size.
+TRACKING_MARGIN = 0.5
+TRACKING_SIZE_FACTOR = 1.35
+# Eyes are searched for in the upper part of the face box, where they are.
+EYE_BAND_FRACTION = 0.6
+# A face box closer than this fraction of the image width to an edge may be cut off.
+EDGE_MARGIN_FRACTION = 0.01
+# The depth region needs at least this fraction of valid pixels.
+MIN_VALID_FRACTION = 0.5
+# The fraction cut from each end of the region's depths before averaging.
+TRIM_FRACTION = 0.25
+
+
+@dataclass(frozen=True)
+class FaceMeasurement:
+    """What one image gave.
+
+    Attributes:
+        face_box: the face (full-resolution pixels), or None.
+        eye_boxes: the eyes found within it (0-2), left to right.
+        region_box: where the depth was read, or None.
+        distance_m: the camera-to-face distance (m); NaN when not valid.
+        valid: whether ``distance_m`` is a measurement.
+        reason: why not, when not valid ("no face", "face at the image edge", "no valid depth",
+            "frame dropped"); empty when valid.
+    """
+
+    face_box: Box | None
+    eye_boxes: tuple[Box, ...]
+    region_box: Box | None
+    distance_m: float
+    valid: bool
+    reason: str = ""
+
+
+def invalid_measurement(reason: str, face_box: Box | None = None, eye_boxes=()) -> FaceMeasurement:
+    """A measurement that is none, saying why."""
+    return FaceMeasurement(face_box, tuple(eye_boxes), None, float("nan"), False, reason)
+
+
+def _cascade(file_name: str):
+    if not hasattr(cv2, "CascadeClassifier"):
+        raise MasklessError(
+            f"OpenCV {cv2.__version__} has no CascadeClassifier (opencv-python-headless 5.0 "
+            "dropped it); install opencv-python-headless>=4.12,<5"
+        )
+    cascade = cv2.CascadeClassifier(cv2.data.haarcascades + file_name)
+    if cascade.empty():
+        raise MasklessError(f"OpenCV could not load its cascade {file_name}")
+    return cascade
+
+
+class FaceFinder:
+    """The face and eye cascades, and how to search with them.
+
+    Args:
+        eye_upsampling: the face's box is enlarged by this factor before the eye search, so that
+            the eyes of a face found in a downsampled image are as large as the eye cascade's
+            window (20 x 20 pixels) needs.
+    """
+
+    def __init__(self, eye_upsampling: float = 1.0):
+        """Loads OpenCV's stock cascades."""
+        self.eye_upsampling = eye_upsampling
+        self._face = _cascade(FACE_CASCADE)
+        self._eye = _cascade(EYE_CASCADE)
+
+    def find_face(self, gray: np.ndarray, last_face: Box | None) -> Box | None:
+        """The face in ``gray``, searched for near ``last_face`` first, then everywhere."""
+        if last_face is not None:
+            found = self._search_near(gray, last_face)
+            if found is not None:
+                return found
+        faces = self._face.detectMultiScale(gray, SCALE_FACTOR, MIN_NEIGHBORS)
+        return _largest(faces) if len(faces) else None
+
+    def _search_near(self, gray: np.ndarray, last: Box) -> Box | None:
+        x, y, w, h = last
+        margin_x, margin_y = int(TRACKING_MARGIN * w), int(TRACKING_MARGIN * h)
+        left, top = max(0, x - margin_x), max(0, y - margin_y)
+        right = min(gray.shape[1], x + w + margin_x)
+        bottom = min(gray.shape[0], y + h + margin_y)
+        size = max(w, h)
+        faces = self._face.detectMultiScale(
+            gray[top:bottom, left:right],
+            SCALE_FACTOR,
+            MIN_NEIGHBORS,
+            minSize=(int(size / TRACKING_SIZE_FACTOR),) * 2,
+            maxSize=(int(size * TRACKING_SIZE_FACTOR) + 1,) * 2,
+        )
+        if not len(faces):
+            return None
+        fx, fy, fw, fh = _largest(faces)
+        return (fx + left, fy + top, fw, fh)
+
+    def find_eyes(self, gray: np.ndarray, face: Box) -> tuple[Box, ...]:
+        """Up to two eyes in the upper part of ``face``, left to right, in ``gray``'s pixels."""
+        x, y, w, h = face
+        band = gray[y : y + int(EYE_BAND_FRACTION * h), x : x + w]
+        factor = self.eye_upsampling
+        if factor != 1.0:
+            band = cv2.resize(band, None, fx=factor, fy=factor, interpolation=cv2.INTER_LINEAR)
+        eyes = self._eye.detectMultiScale(band, SCALE_FACTOR, MIN_NEIGHBORS)
+        largest_two = sorted(eyes, key=lambda e: -int(e[2]) * int(e[3]))[:2]
+        return tuple(
+            sorted(
+                (x + ex, y + ey, ew, eh)
+                for ex, ey, ew, eh in (scale_box(e, 1.0 / factor) for e in largest_two)
+            )
+        )
+
+
+def _largest(boxes) -> Box:
+    return tuple(int(v) for v in max(boxes, key=lambda b: b[2] * b[3]))
+
+
+def scale_box(box, factor: float) -> Box:
+    """``box`` in an image resized by ``factor`` (whole pixels)."""
+    return tuple(int(round(float(v) * factor)) for v in box)
+
+
+def depth_region(face: Box, eyes: tuple[Box, ...]) -> Box:
+    """The box the depth is read in: the band spanning both eyes, else the face box's middle."""
+    if len(eyes) == 2:
+        left = min(e[0] for e in eyes)
+        top = min(e[1] for e in eyes)
+        right = max(e[0] + e[2] for e in eyes)
+        bottom = max(e[1] + e[3] for e in eyes)
+        return (left, top, right - left, bottom - top)
+    x, y, w, h = face
+    return (x + w // 4, y + h // 4, w // 2, h // 2)
+
+
+def at_image_edge(box: Box, image_shape: tuple[int, ...]) -> bool:
+    """Whether ``box`` comes within the edge margin of the image (a face there may be cut off)."""
+    rows, columns = image_shape[:2]
+    margin = max(2, int(EDGE_MARGIN_FRACTION * columns))
+    x, y, w, h = box
+    return x < margin or y < margin or x + w > columns - margin or y + h > rows - margin
+
+
+def region_distance_m(depth_m: np.ndarray) -> float:
+    """The interquartile mean of a region's valid (non-zero) depths (m); NaN if too few."""
+    values = np.asarray(depth_m).ravel()
+    valid = values[values > 0]
+    if values.size == 0 or valid.size < MIN_VALID_FRACTION * values.size:
+        return float("nan")
+    return float(trim_mean(valid.astype(np.float64), TRIM_FRACTION))
+
+
+def find_face_region(
+    finder: FaceFinder, gray: np.ndarray, last_face: Box | None
+) -> FaceMeasurement:
+    """Finds the face and eyes in ``gray`` and the region to read depth in (no distance yet).
+
+    The result is valid when the region is where a distance should be read; it is invalid, saying
+    why, when there is no face or the face is at the image's edge.
+    """
+    face = finder.find_face(gray, last_face)
+    if face is None:
+        return invalid_measurement("no face")
+    eyes = finder.find_eyes(gray, face)
+    if at_image_edge(face, gray.shape):
+        return invalid_measurement("face at the image edge", face, eyes)
+    return FaceMeasurement(face, eyes, depth_region(face, eyes), float("nan"), True)
+
+
+def with_distance(found: FaceMeasurement, distance_m: float) -> FaceMeasurement:
+    """``found`` (from ``find_face_region``) with the distance read in its region."""
+    if not found.valid:
+        return found
+    if not np.isfinite(distance_m):
+        return dataclasses.replace(found, valid=False, reason="no valid depth")
+    return dataclasses.replace(found, distance_m=float(distance_m))

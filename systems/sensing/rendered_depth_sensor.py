@@ -1,0 +1,283 @@
+"""A depth camera that measures by rendering: Drake's RgbdSensor, then face detection on its images.
+
+Per frame: the camera renders colour and depth of the scene (``camera_scene``); the depth image gets
+the Kinect's per-pixel noise, quantisation and holes (``depth_image_noise``); the face and eyes are
+found in the colour image and the face's distance read in the depth image (``face_detection``).
+The result goes out on the measurement model's port contract (``distance_m``, ``valid``), so the
+local filters, the fusion and the controller are the same for both fidelities.
+
+Timing is the measurement model's: a frame is rendered at each frame tick and its measurement
+reaches the filter at the filter's next tick, one frame later; a configured latency of more frames
+holds it longer. Randomness comes from a RandomSource (``{name}.frame_seed``) that draws one seed
+per frame, so a run seeded with ``diagram.SetRandomContext`` is reproducible bit for bit.
+
+The colour and depth images are evaluated only in the frame tick (and by the frame recorder at the
+same instants, which reads the same cached render), so each frame is rendered once.
+"""
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+from pydrake.common import RandomDistribution
+from pydrake.common.value import AbstractValue
+from pydrake.geometry import (
+    ClippingRange,
+    ColorRenderCamera,
+    DepthRange,
+    DepthRenderCamera,
+    RenderCameraCore,
+)
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import RandomSource
+from pydrake.systems.sensors import CameraInfo, ImageDepth32F, ImageRgba8U, RgbdSensor
+
+from maskless.systems.named_symbolic_system import PortMap
+from maskless.systems.sensing.camera_scene import RENDERER, CameraScene, camera_pose
+from maskless.systems.sensing.depth_image_noise import kinect_depth_image
+from maskless.systems.sensing.depth_sensor import (
+    DepthSensorConfig,
+    latency_frames,
+    validate_sensor_config,
+)
+from maskless.systems.sensing.face_detection import (
+    FaceFinder,
+    FaceMeasurement,
+    find_face_region,
+    invalid_measurement,
+    region_distance_m,
+    scale_box,
+    with_distance,
+)
+
+# The renderer's clipping planes (m); the camera's working range is applied to the depth image.
+CLIPPING_RANGE_M = (0.05, 10.0)
+# A uniform draw in [0, 1) becomes a 53-bit seed (a double's significand) for the frame's noise.
+_SEED_BITS = 53
+
+# Tracker state: the last face box (x, y, width, height) and whether there was one.
+_TRACK_SIZE = 5
+
+
+def camera_info(config: DepthSensorConfig, scale: float = 1.0) -> CameraInfo:
+    """The camera's intrinsics (image size, fields of view, centred principal point), scaled.
+
+    ``scale`` < 1 gives the same view in fewer pixels: the camera's image downsampled.
+    """
+    rendering = config.rendering
+    width = round(rendering.image_width_px * scale)
+    height = round(rendering.image_height_px * scale)
+    focal_x = width / 2 / math.tan(math.radians(rendering.horizontal_fov_deg) / 2)
+    focal_y = height / 2 / math.tan(math.radians(rendering.vertical_fov_deg) / 2)
+    return CameraInfo(width, height, focal_x, focal_y, (width - 1) / 2, (height - 1) / 2)
+
+
+def make_rgbd_sensor(scene: CameraScene, config: DepthSensorConfig) -> RgbdSensor:
+    """Drake's RgbdSensor for ``config``'s camera, mounted as configured, looking down.
+
+    Depth at the camera's resolution; colour at ``rendering.color_scale`` of it, the same view.
+    """
+
+    def core(scale):
+        return RenderCameraCore(
+            RENDERER,
+            camera_info(config, scale),
+            ClippingRange(*CLIPPING_RANGE_M),
+            RigidTransform(),
+        )
+
+    return RgbdSensor(
+        scene.world_frame,
+        camera_pose(config.rendering.position_m, config.mount_height_m),
+        ColorRenderCamera(core(config.rendering.color_scale), False),
+        DepthRenderCamera(core(1.0), DepthRange(*CLIPPING_RANGE_M)),
+    )
+
+
+class FaceDepthSensor(LeafSystem):
+    """Measures the camera-to-face distance in a camera's images, once per frame.
+
+    .. pydrake_system::
+
+        name: kinect_v1
+        input_ports:
+        - color_image
+        - depth_image
+        - frame_seed
+        output_ports:
+        - distance_m
+        - valid
+        - measurement
+
+    ``measurement`` is the frame being taken now (a ``FaceMeasurement``: boxes, distance and why
+    not, from the current images); ``distance_m`` and ``valid`` are the last frame's, as its
+    filter receives them.
+
+    Args:
+        config: the camera (its noise, range, latency and ``rendering`` settings).
+    """
+
+    def __init__(self, config: DepthSensorConfig):
+        """Declares the ports, the tracker and measurement state, and the frame tick."""
+        super().__init__()
+        self._config = config
+        self._finder = FaceFinder(eye_upsampling=1.0 / config.rendering.color_scale)
+        self._color = self.DeclareAbstractInputPort(
+            "color_image", AbstractValue.Make(ImageRgba8U())
+        )
+        self._depth = self.DeclareAbstractInputPort(
+            "depth_image", AbstractValue.Make(ImageDepth32F())
+        )
+        self._seed = self.DeclareVectorInputPort("frame_seed", 1)
+        self._track = self.DeclareDiscreteState(_TRACK_SIZE)
+        # (distance, valid) per frame still on its way, newest first; the last pair is output.
+        self._frames = latency_frames(config)
+        self._pipeline = self.DeclareDiscreteState(2 * self._frames)
+        self.DeclareVectorOutputPort("distance_m", 1, self._calc_distance)
+        self.DeclareVectorOutputPort("valid", 1, self._calc_valid)
+        self._measurement = self.DeclareAbstractOutputPort(
+            "measurement",
+            lambda: AbstractValue.Make(invalid_measurement("no frame yet")),
+            self._calc_measurement,
+        )
+        period_s = 1.0 / config.frame_rate_hz
+        self.DeclarePeriodicDiscreteUpdateEvent(period_s, 0.0, self._take_frame)
+
+    def _calc_measurement(self, context, output) -> None:
+        config = self._config
+        rng = np.random.default_rng(int(self._seed.Eval(context)[0] * 2**_SEED_BITS))
+        if rng.random() < config.dropout_probability:
+            output.set_value(invalid_measurement("frame dropped"))
+            return
+        track = context.get_discrete_state(self._track).value()
+        last_face = tuple(int(v) for v in track[:4]) if track[4] > 0.5 else None
+        found = find_face_region(self._finder, _gray(self._color.Eval(context).data), last_face)
+        distance_m = float("nan")
+        if found.valid:
+            # Only the region's pixels are read, so only they get the camera's noise: the same
+            # draws per pixel as a whole noisy image would give them, for a fraction of the cost.
+            x, y, w, h = scale_box(found.region_box, 1.0 / config.rendering.color_scale)
+            exact = self._depth.Eval(context).data[y : y + h, x : x + w, 0]
+            region = kinect_depth_image(exact, config, context.get_time(), rng)
+            distance_m = region_distance_m(region)
+        output.set_value(with_distance(found, distance_m))
+
+    def _take_frame(self, context, discrete_state) -> None:
+        measurement: FaceMeasurement = self._measurement.Eval(context)
+        track = discrete_state.get_mutable_vector(self._track)
+        if measurement.face_box is not None:
+            track.SetFromVector([*measurement.face_box, 1.0])
+        elif measurement.reason != "frame dropped":
+            track.SetAtIndex(4, 0.0)  # lost: search the whole image next frame
+        pipeline = context.get_discrete_state(self._pipeline).value()
+        distance = measurement.distance_m if measurement.valid else 0.0
+        discrete_state.get_mutable_vector(self._pipeline).SetFromVector(
+            np.concatenate([[distance, float(measurement.valid)], pipeline[:-2]])
+        )
+
+    def _calc_distance(self, context, output) -> None:
+        output.SetAtIndex(0, context.get_discrete_state(self._pipeline).value()[-2])
+
+    def _calc_valid(self, context, output) -> None:
+        output.SetAtIndex(0, context.get_discrete_state(self._pipeline).value()[-1])
+
+
+def _gray(color: np.ndarray) -> np.ndarray:
+    """The grey image of an RGBA image, as the cascades take it."""
+    import cv2
+
+    return cv2.cvtColor(color, cv2.COLOR_RGBA2GRAY)
+
+
+FrameSink = Callable[[str, float, np.ndarray, FaceMeasurement], None]
+
+
+class FrameRecorder(LeafSystem):
+    """Hands every ``decimation``-th frame of a camera, with what was found in it, to ``sink``.
+
+    A publish event (a side effect only), at frame ticks, so it reads the very render the
+    measurement is taken from.
+
+    .. pydrake_system::
+
+        name: kinect_v1.frames
+        input_ports:
+        - color_image
+        - measurement
+
+    Args:
+        camera: the camera's name, passed to ``sink``.
+        period_s: the camera's frame period (s).
+        decimation: frames per recorded frame.
+        sink: called as sink(camera, time_s, rgb, measurement) with a copy of the image.
+    """
+
+    def __init__(self, camera: str, period_s: float, decimation: int, sink: FrameSink):
+        """Declares the inputs and the periodic publish."""
+        super().__init__()
+        self._camera = camera
+        self._sink = sink
+        self._color = self.DeclareAbstractInputPort(
+            "color_image", AbstractValue.Make(ImageRgba8U())
+        )
+        self._measurement = self.DeclareAbstractInputPort(
+            "measurement", AbstractValue.Make(invalid_measurement("no frame yet"))
+        )
+        self.DeclarePeriodicPublishEvent(period_s * decimation, 0.0, self._record)
+
+    def _record(self, context) -> None:
+        measurement = self._measurement.Eval(context)
+        rgb = self._color.Eval(context).data[:, :, :3].copy()
+        self._sink(self._camera, context.get_time(), rgb, measurement)
+
+
+def add_rendered_depth_sensor(
+    builder: DiagramBuilder,
+    name: str,
+    config: DepthSensorConfig,
+    scene: CameraScene,
+    frame_sink: FrameSink | None = None,
+    record_every_frames: int = 1,
+) -> PortMap:
+    """Adds a rendered camera watching ``scene``: ``name.camera``, ``name.frame_seed``, ``name``.
+
+    .. pydrake_system::
+
+        name: kinect_v1
+        output_ports:
+        - distance_m
+        - valid
+
+    Args:
+        builder: where the systems go.
+        name: the camera's name (and its measurement's name in recordings).
+        config: the camera, with ``rendering`` enabled.
+        scene: the scene it looks at (``camera_scene.add_camera_scene``).
+        frame_sink: when given, every ``record_every_frames``-th frame goes to it
+            (``FrameRecorder``, ``name.frames``).
+        record_every_frames: frames per recorded frame.
+    """
+    validate_sensor_config(name, config)
+    period_s = 1.0 / config.frame_rate_hz
+    camera = builder.AddNamedSystem(f"{name}.camera", make_rgbd_sensor(scene, config))
+    builder.Connect(scene.scene_graph.get_query_output_port(), camera.query_object_input_port())
+    seed = builder.AddNamedSystem(
+        f"{name}.frame_seed", RandomSource(RandomDistribution.kUniform, 1, period_s)
+    )
+    sensor = builder.AddNamedSystem(name, FaceDepthSensor(config))
+    builder.Connect(camera.color_image_output_port(), sensor.GetInputPort("color_image"))
+    builder.Connect(camera.depth_image_32F_output_port(), sensor.GetInputPort("depth_image"))
+    builder.Connect(seed.get_output_port(), sensor.GetInputPort("frame_seed"))
+    if frame_sink is not None:
+        recorder = builder.AddNamedSystem(
+            f"{name}.frames", FrameRecorder(name, period_s, record_every_frames, frame_sink)
+        )
+        builder.Connect(camera.color_image_output_port(), recorder.GetInputPort("color_image"))
+        builder.Connect(sensor.GetOutputPort("measurement"), recorder.GetInputPort("measurement"))
+    return PortMap(
+        outputs={
+            "distance_m": sensor.GetOutputPort("distance_m"),
+            "valid": sensor.GetOutputPort("valid"),
+        }
+    )

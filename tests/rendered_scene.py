@@ -1,0 +1,70 @@
+"""A scene with the shipped cameras rendering it, the head height an input: for rendering tests."""
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+
+from maskless.diagrams.scenario import load_scenario
+from maskless.systems.sensing.camera_scene import add_camera_scene
+from maskless.systems.sensing.rendered_depth_sensor import make_rgbd_sensor
+
+
+class _HeadHeight(LeafSystem):
+    """Passes the exported head height through, so the scene's pose port has a source."""
+
+    def __init__(self):
+        super().__init__()
+        port = self.DeclareVectorInputPort("head_height_m", 1)
+        self.DeclareVectorOutputPort(
+            "head_height_m", 1, lambda context, out: out.SetFromVector(port.Eval(context))
+        )
+
+
+@dataclass
+class RenderedScene:
+    diagram: object
+    context: object
+    cameras: dict  # name -> (config, RgbdSensor)
+
+    def render(self, name: str, head_height_m: float):
+        """(rgb, depth) of camera ``name`` with the head at ``head_height_m``."""
+        self.diagram.get_input_port(0).FixValue(self.context, [head_height_m])
+        config, sensor = self.cameras[name]
+        context = sensor.GetMyContextFromRoot(self.context)
+        rgb = sensor.color_image_output_port().Eval(context).data[:, :, :3].copy()
+        depth = sensor.depth_image_32F_output_port().Eval(context).data[:, :, 0].copy()
+        return rgb, depth
+
+
+def shipped_cameras(**rendering_changes):
+    """The shipped cameras, rendered, with ``rendering_changes`` applied to each."""
+    cameras = load_scenario().cameras
+    for camera in cameras.values():
+        camera.rendering.enabled = True
+        for key, value in rendering_changes.items():
+            setattr(camera.rendering, key, value)
+    return cameras
+
+
+def build_rendered_scene(cameras) -> RenderedScene:
+    builder = DiagramBuilder()
+    head = builder.AddSystem(_HeadHeight())
+    builder.ExportInput(head.get_input_port(), "head_height_m")
+    scene = add_camera_scene(builder, head.get_output_port())
+    sensors = {}
+    for name, config in cameras.items():
+        sensor = builder.AddNamedSystem(f"{name}.camera", make_rgbd_sensor(scene, config))
+        builder.Connect(scene.scene_graph.get_query_output_port(), sensor.query_object_input_port())
+        sensors[name] = (config, sensor)
+    diagram = builder.Build()
+    return RenderedScene(diagram, diagram.CreateDefaultContext(), sensors)
+
+
+# The lift the valves can hold: `maskless analyze operating-range` finds the inlet spans 0-18.11 mm.
+WORKING_LIFT_M = (0.0, 0.009, 0.018)
+
+
+def head_travel_m() -> np.ndarray:
+    """The lowest, middle and highest head heights of the pneumatic plant's working range (m)."""
+    return load_scenario().pneumatic.rest_head_height_m + np.array(WORKING_LIFT_M)

@@ -1,8 +1,15 @@
 """Write and read the MCAP recordings of a closed-loop simulation.
 
-Every topic carries JSON messages (``message_encoding`` ``"json"``) described by a ``"jsonschema"``
-schema. ``log_time`` and ``publish_time`` are *simulated* time in integer nanoseconds, not wall
-clock, so a recording of the same simulation is byte-for-byte reproducible.
+Every topic of the loop's signals carries JSON messages (``message_encoding`` ``"json"``) described
+by a ``"jsonschema"`` schema. ``log_time`` and ``publish_time`` are *simulated* time in integer
+nanoseconds, not wall clock, so a recording of the same simulation is byte-for-byte reproducible.
+
+A recording may also carry camera frames (``maskless.camera_images``): per camera, Foxglove's
+``CompressedImage`` on ``/cameras/NAME/image`` and ``ImageAnnotations`` on
+``/cameras/NAME/annotations``, protobuf messages (``message_encoding`` ``"protobuf"``) whose schemas
+are the FileDescriptorSets Foxglove ships. They are merged with the JSON messages by log time, a
+frame after the JSON messages of its time. ``read_recording`` passes over them;
+``read_camera_frames`` reads them.
 
 The writer takes whole columns (the arrays a Drake ``VectorLogSink`` hands back) rather than single
 messages, because converting column-wise with ``ndarray.tolist()`` is far cheaper than touching
@@ -59,6 +66,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from foxglove.messages import CompressedImage, ImageAnnotations
+from google.protobuf.message import DecodeError
 from mcap.exceptions import EndOfFile, McapError
 from mcap.records import Channel as McapChannel
 from mcap.records import Message as McapMessage
@@ -66,9 +75,20 @@ from mcap.records import Schema as McapSchema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, IndexType, Writer
 
+from maskless.camera_images import (
+    CameraFrame,
+    annotations_message,
+    annotations_topic,
+    camera_of_topic,
+    frame_from_messages,
+    image_message,
+    image_topic,
+)
 from maskless.errors import MissingFileError, RecordError
+from maskless.sensor_names import is_sensor_name
 
 __all__ = [
+    "CAMERA_MESSAGE_ENCODING",
     "COMMAND_TOPIC",
     "FUSION_TOPIC",
     "HEAD_HEIGHT_TOPIC",
@@ -81,6 +101,7 @@ __all__ = [
     "TruncatedRecordingWarning",
     "current_name",
     "filter_estimate_topic",
+    "read_camera_frames",
     "read_recording",
     "schema_for_topic",
     "sensor_measurement_topic",
@@ -89,6 +110,8 @@ __all__ = [
 
 MESSAGE_ENCODING = "json"
 SCHEMA_ENCODING = "jsonschema"
+# Camera frames are Foxglove messages, which Foxglove defines in protobuf.
+CAMERA_MESSAGE_ENCODING = "protobuf"
 LIBRARY = "maskless"
 PROFILE = ""
 
@@ -103,8 +126,6 @@ COMMAND_TOPIC = "/controller/command"
 # The MCAP magic that opens (and closes) every file.
 _MAGIC = b"\x89MCAP0\r\n"
 
-# Sensor names become one path segment of a topic, so they must not contain "/" or spaces.
-_SENSOR_NAME = re.compile(r"[A-Za-z0-9_]+")
 _SENSOR_TOPIC = re.compile(r"/sensors/([A-Za-z0-9_]+)/measurement")
 _FILTER_TOPIC = re.compile(r"/filters/([A-Za-z0-9_]+)/estimate")
 # A maskless schema name: the kind of message, then ".vN" from version 2 on.
@@ -250,11 +271,6 @@ def filter_estimate_topic(name: str) -> str:
     """
     _check_sensor_name(name)
     return f"/filters/{name}/estimate"
-
-
-def is_sensor_name(name) -> bool:
-    """Whether ``name`` can name a sensor's topics: letters, digits and underscores only."""
-    return isinstance(name, str) and _SENSOR_NAME.fullmatch(name) is not None
 
 
 def _check_sensor_name(name: str) -> None:
@@ -484,41 +500,72 @@ def _encode_payloads(topic: str, names: list[str], lists: list[list[Any]]) -> li
     return [(template % row).encode() for row in zip(*flat_columns, strict=True)]
 
 
-def write_recording(path: str | PathLike[str], channels: Sequence[Channel]) -> None:
+def write_recording(
+    path: str | PathLike[str], channels: Sequence[Channel], frames: Sequence[CameraFrame] = ()
+) -> None:
     """Writes a simulation recording as MCAP.
 
-    All channels are validated before the file is opened, so a bad input never leaves a partial
-    file behind. Messages of all channels are merged in increasing log time (ties keep the order of
-    ``channels``) and encoded with compact ``json.dumps``, so the same arrays always give the same
-    bytes.
+    All channels and frames are validated before the file is opened, so a bad input never leaves a
+    partial file behind. Messages of all channels are merged in increasing log time (ties keep the
+    order of ``channels``) and encoded with compact ``json.dumps``, so the same arrays always give
+    the same bytes. Each frame adds its two protobuf messages (see ``maskless.camera_images``),
+    merged by its time after the JSON messages of the same time; without frames the file is the
+    one written before frames existed, byte for byte.
 
     Args:
         path: Output file; overwritten if it exists.
         channels: One ``Channel`` per topic. Each topic may appear only once; a channel with no
             samples is still registered, so its topic appears in the file.
+        frames: Camera frames, each camera's in non-decreasing time. The cameras' topics are
+            registered in the order their first frames come.
 
     Raises:
         ValueError: If a topic is unknown or repeated, a column has the wrong length or shape, the
-            field names are not exactly the schema's required fields, or the times are not
-            non-decreasing integers (ns). The message names the topic and field.
+            field names are not exactly the schema's required fields, the times are not
+            non-decreasing integers (ns), or a camera's frames go back in time. The message names
+            the topic and field, or the camera.
     """
-    batch = _Batch.of(channels)
-    with RecordingWriter(path, [channel.topic for channel in channels]) as writer:
+    cameras = list(dict.fromkeys(frame.camera for frame in _checked_frames(frames)))
+    batch = _Batch.of(channels, frames, cameras)
+    with RecordingWriter(path, [channel.topic for channel in channels], cameras) as writer:
         writer._write_batch(batch)
+
+
+def _checked_frames(frames: Sequence[CameraFrame]) -> Sequence[CameraFrame]:
+    for i, frame in enumerate(frames):
+        if not isinstance(frame, CameraFrame):
+            raise ValueError(f"frames[{i}]: expected a CameraFrame, got {type(frame).__name__}")
+    return frames
+
+
+# Every camera's topics, in this order, with the Foxglove message each carries.
+_CAMERA_TOPICS = ((image_topic, CompressedImage), (annotations_topic, ImageAnnotations))
+
+
+def _camera_topics(cameras: Sequence[str]) -> list[tuple[str, Any]]:
+    """The (topic, Foxglove message class) of every camera, camera by camera."""
+    return [(topic(camera), kind) for camera in cameras for topic, kind in _CAMERA_TOPICS]
 
 
 @dataclass
 class _Batch:
-    """Validated, encoded channels: every message's (time, channel, row) in log-time order."""
+    """Validated, encoded messages: every message's (time, topic, row) in log-time order.
 
-    topics: list[str]
+    Topics are numbered as the writer registers them: the channels', then two per camera.
+    """
+
     payloads: list[list[bytes]]
     times: list[int]
     channel_indices: list[int]
     rows: list[int]
 
     @classmethod
-    def of(cls, channels: Sequence[Channel]) -> _Batch:
+    def of(
+        cls,
+        channels: Sequence[Channel],
+        frames: Sequence[CameraFrame] = (),
+        cameras: Sequence[str] = (),
+    ) -> _Batch:
         seen: set[str] = set()
         prepared = []
         for channel in channels:
@@ -531,20 +578,22 @@ class _Batch:
             _encode_payloads(channel.topic, names, lists)
             for channel, (_, names, lists) in zip(channels, prepared, strict=True)
         ]
-        # A stable sort over the channels concatenated in order keeps ties in the order of
-        # `channels` and, within a channel, in sample order.
+        frame_times, frame_payloads = _encode_frames(_checked_frames(frames), cameras)
+        return cls._merged([t for t, _, _ in prepared] + frame_times, payloads + frame_payloads)
+
+    @classmethod
+    def _merged(cls, times: list[np.ndarray], payloads: list[list[bytes]]) -> _Batch:
+        """Every topic's messages in log-time order, given each topic's times and payloads."""
+        # A stable sort over the topics concatenated in order keeps ties in the order of the
+        # topics and, within a topic, in sample order.
         empty = [np.empty(0, np.int64)]
-        all_times = np.concatenate([t for t, _, _ in prepared] or empty)
+        all_times = np.concatenate(times or empty)
         channel_index = np.concatenate(
-            [np.full(t.shape[0], i, dtype=np.int64) for i, (t, _, _) in enumerate(prepared)]
-            or empty
+            [np.full(t.shape[0], i, dtype=np.int64) for i, t in enumerate(times)] or empty
         )
-        row_index = np.concatenate(
-            [np.arange(t.shape[0], dtype=np.int64) for t, _, _ in prepared] or empty
-        )
+        row_index = np.concatenate([np.arange(t.shape[0], dtype=np.int64) for t in times] or empty)
         order = np.argsort(all_times, kind="stable")
         return cls(
-            [channel.topic for channel in channels],
             payloads,
             all_times[order].tolist(),
             channel_index[order].tolist(),
@@ -552,28 +601,72 @@ class _Batch:
         )
 
 
+def _encode_frames(
+    frames: Sequence[CameraFrame], cameras: Sequence[str]
+) -> tuple[list[np.ndarray], list[list[bytes]]]:
+    """Each camera topic's times (ns) and encoded messages, in ``_camera_topics`` order.
+
+    Raises:
+        ValueError: If a frame's camera is not one of ``cameras``, or a camera's frames go back
+            in time.
+    """
+    index = {camera: k for k, camera in enumerate(cameras)}
+    times: list[list[int]] = [[] for _ in range(len(_CAMERA_TOPICS) * len(cameras))]
+    payloads: list[list[bytes]] = [[] for _ in times]
+    for frame in frames:
+        if frame.camera not in index:
+            raise ValueError(
+                f"camera {frame.camera!r}: not one of the recording's cameras {list(cameras)}"
+            )
+        image = len(_CAMERA_TOPICS) * index[frame.camera]
+        if times[image] and frame.time_ns < times[image][-1]:
+            raise ValueError(
+                f"camera {frame.camera!r}: frame times must be non-decreasing (a frame at "
+                f"{frame.time_s} s follows one at {times[image][-1] / 1e9} s)"
+            )
+        messages = (image_message(frame), annotations_message(frame))
+        for k, message in enumerate(messages, start=image):
+            times[k].append(frame.time_ns)
+            payloads[k].append(message.encode())
+    return [np.asarray(t, dtype=np.int64) for t in times], payloads
+
+
 class RecordingWriter:
     """A recording written in batches, for a run that is still going.
 
-    Each batch holds the next samples of every topic, later than every message before it.
+    Each batch holds the next samples of every topic (and the next frames of the cameras), later
+    than every message before it.
 
     Use it as a context manager. Leaving the block normally writes the footer; leaving it on an
     error closes the file without one, so ``read_recording`` reads what was written and reports
     the recording as cut off. Messages are identical to ``write_recording``'s for the same samples
-    in one batch.
+    and frames in one batch (given the cameras in the order of their first frames).
     """
 
-    def __init__(self, path: str | PathLike[str], topics: Sequence[str]):
-        """Opens ``path`` (overwritten) and registers ``topics``, in order.
+    def __init__(
+        self, path: str | PathLike[str], topics: Sequence[str], cameras: Sequence[str] = ()
+    ):
+        """Opens ``path`` (overwritten) and registers ``topics``, in order, then ``cameras``.
+
+        Args:
+            path: Output file; overwritten if it exists.
+            topics: The JSON topics every batch carries a channel for, in this order.
+            cameras: The cameras whose frames the batches may carry; each gets an image and an
+                annotations topic (``maskless.camera_images``).
 
         Raises:
-            ValueError: If a topic is unknown or repeated (before the file is opened).
+            ValueError: If a topic is unknown or repeated, or a camera name is invalid or
+                repeated (before the file is opened).
         """
         if len(set(topics)) != len(topics):
             raise ValueError(f"topics repeat: {list(topics)}")
+        if len(set(cameras)) != len(cameras):
+            raise ValueError(f"cameras repeat: {list(cameras)}")
         schemas = [schema_for_topic(topic) for topic in topics]
+        camera_topics = _camera_topics(cameras)  # checks the names
         self._topics = list(topics)
-        self._messages_written = [0] * len(topics)
+        self._cameras = list(cameras)
+        self._messages_written = [0] * (len(topics) + len(camera_topics))
         self._last_time_ns = None
         self._stream = open(Path(path), "wb")
         self._writer = Writer(
@@ -586,8 +679,12 @@ class RecordingWriter:
             enable_data_crcs=True,
         )
         self._writer.start(profile=PROFILE, library=LIBRARY)
-        schema_ids: dict[str, int] = {}
         self._channel_ids = []
+        self._register_json_topics(topics, schemas)
+        self._register_camera_topics(camera_topics)
+
+    def _register_json_topics(self, topics, schemas) -> None:
+        schema_ids: dict[str, int] = {}
         for topic, (schema_name, schema) in zip(topics, schemas, strict=True):
             if schema_name not in schema_ids:
                 schema_ids[schema_name] = self._writer.register_schema(
@@ -603,17 +700,39 @@ class RecordingWriter:
                 )
             )
 
-    def write(self, channels: Sequence[Channel]) -> None:
-        """Appends a batch: one ``Channel`` per registered topic, in the registered order.
+    def _register_camera_topics(self, camera_topics: list[tuple[str, Any]]) -> None:
+        # Unchunked, each schema record lands in the file at once: before its channels' messages.
+        schema_ids: dict[Any, int] = {}
+        for topic, kind in camera_topics:
+            if kind not in schema_ids:
+                schema = kind.get_schema()  # the name, encoding and FileDescriptorSet Foxglove has
+                schema_ids[kind] = self._writer.register_schema(
+                    name=schema.name, encoding=schema.encoding, data=bytes(schema.data)
+                )
+            self._channel_ids.append(
+                self._writer.register_channel(
+                    topic=topic,
+                    message_encoding=CAMERA_MESSAGE_ENCODING,
+                    schema_id=schema_ids[kind],
+                )
+            )
+
+    def write(self, channels: Sequence[Channel], frames: Sequence[CameraFrame] = ()) -> None:
+        """Appends a batch: a ``Channel`` per registered topic, in order, and frames of cameras.
+
+        Args:
+            channels: One ``Channel`` per registered topic, in the registered order.
+            frames: Frames of the registered cameras, each camera's in non-decreasing time.
 
         Raises:
-            ValueError: If the topics differ from the registered ones, a channel is invalid (as
-                for ``write_recording``), or the batch starts before the last message written.
+            ValueError: If the topics differ from the registered ones, a channel or frame is
+                invalid (as for ``write_recording``), a frame's camera is not registered, or the
+                batch starts before the last message written.
         """
         topics = [channel.topic for channel in channels]
         if topics != self._topics:
             raise ValueError(f"batch topics {topics}: expected {self._topics}")
-        self._write_batch(_Batch.of(channels))
+        self._write_batch(_Batch.of(channels, frames, self._cameras))
 
     def _write_batch(self, batch: _Batch) -> None:
         if batch.times and self._last_time_ns is not None and batch.times[0] < self._last_time_ns:
@@ -648,17 +767,29 @@ class RecordingWriter:
             self._stream.close()
 
 
-def write_recording_batches(connection, path: str | PathLike[str]) -> None:
-    """Writes the batches of channels ``connection.recv()`` returns to ``path``, until None.
+def write_recording_batches(
+    connection, path: str | PathLike[str], cameras: Sequence[str] = ()
+) -> None:
+    """Writes the batches ``connection.recv()`` returns to ``path``, until None.
 
-    A ``background.Worker``'s serve function. If the sender goes away first (EOFError), the file
-    is left without its footer: cut off, and readable up to the last batch.
+    A ``background.Worker``'s serve function (``Worker(..., write_recording_batches, path,
+    cameras)``). A batch is a list of channels, as for ``RecordingWriter.write``, or a pair
+    ``(channels, frames)`` when it carries frames of ``cameras``; the first batch's channels name
+    the topics. If the sender goes away first (EOFError), the file is left without its footer:
+    cut off, and readable up to the last batch.
     """
-    channels = connection.recv()
-    with RecordingWriter(path, [channel.topic for channel in channels]) as writer:
-        while channels is not None:
-            writer.write(channels)
-            channels = connection.recv()
+    batch = connection.recv()
+    channels, _ = _channels_and_frames(batch)
+    with RecordingWriter(path, [channel.topic for channel in channels], cameras) as writer:
+        while batch is not None:
+            writer.write(*_channels_and_frames(batch))
+            batch = connection.recv()
+
+
+def _channels_and_frames(batch) -> tuple[Sequence[Channel], Sequence[CameraFrame]]:
+    """A batch sent to ``write_recording_batches`` as its channels and frames."""
+    # A tuple is a (channels, frames) pair; a batch of channels alone comes as a list.
+    return batch if isinstance(batch, tuple) else (batch, ())
 
 
 class TruncatedRecordingWarning(RuntimeWarning):
@@ -691,7 +822,8 @@ def read_recording(path: str | PathLike[str], topics: Collection[str] | None = N
     first error after the magic bytes (a cut, or a corrupt record) reading stops, ``truncated`` is
     set and a ``TruncatedRecordingWarning`` names the file and the number of messages recovered.
     Every message returned is complete. A file shorter than the magic whose bytes match it (a
-    writer that died at once) reads as an empty, truncated recording.
+    writer that died at once) reads as an empty, truncated recording. Camera frames (protobuf
+    topics) are passed over; ``read_camera_frames`` reads them.
 
     Args:
         path: The MCAP file.
@@ -705,80 +837,214 @@ def read_recording(path: str | PathLike[str], topics: Collection[str] | None = N
 
     Raises:
         MissingFileError: If the file does not exist.
-        RecordError: If the file is not MCAP (bad magic), a channel's message encoding is not
-            ``"json"``, or a schema carries a format version this reader does not know (the
-            message names the file, the topic and the version).
+        RecordError: If the file is not MCAP (bad magic), a channel's message encoding is neither
+            ``"json"`` nor ``"protobuf"``, or a schema carries a format version this reader does
+            not know (the message names the file, the topic and the version).
     """
     path = Path(path)
+    records = _RecordStream(_read_mcap_bytes(path))
+    recording = Recording()
+    count = _read_json_messages(records, path, topics, recording)
+    if records.error is not None:
+        recording.truncated = True
+        _warn_truncated(path, records.error, f"{count} complete messages")
+    return recording
+
+
+def _read_mcap_bytes(path: Path) -> bytes:
+    """The bytes of an MCAP file, or of a prefix of one.
+
+    Raises:
+        MissingFileError: If the file does not exist.
+        RecordError: If it cannot be read, or does not start as MCAP does (bad magic).
+    """
     try:
         data = path.read_bytes()
     except FileNotFoundError:
         raise MissingFileError(f"MCAP recording not found: {path}") from None
     except OSError as error:  # a folder, or a file that cannot be read
         raise RecordError(f"{path}: cannot read the recording ({error.strerror})") from None
-
     head = data[: len(_MAGIC)]
     if head != _MAGIC[: len(head)]:
         raise RecordError(f"{path} is not an MCAP file (bad magic bytes {head!r})")
+    return data
 
-    recording = Recording()
-    if len(head) < len(_MAGIC):
-        count, error = 0, EndOfFile("file ends inside the magic bytes")
-    else:
-        count, error = _read_records(data, path, topics, recording)
 
-    if error is not None:
-        recording.truncated = True
-        reason = str(error) or "file ends before its footer"
-        warnings.warn(
-            f"{path}: recording is truncated or corrupt ({reason}); "
-            f"recovered {count} complete messages",
-            TruncatedRecordingWarning,
-            stacklevel=2,
+def _warn_truncated(path: Path, error: Exception, recovered: str) -> None:
+    reason = str(error) or "file ends before its footer"
+    warnings.warn(
+        f"{path}: recording is truncated or corrupt ({reason}); recovered {recovered}",
+        TruncatedRecordingWarning,
+        # Warn at the caller of the public reader, which calls this function.
+        stacklevel=3,
+    )
+
+
+class _RecordStream:
+    """A file's records front to back, up to the first unreadable one.
+
+    Once iterated, ``error`` is what stopped the records (a cut, or a corrupt record), or None
+    when they ran to their end.
+    """
+
+    def __init__(self, data: bytes):
+        self._data = data
+        self.error: Exception | None = None
+
+    def __iter__(self):
+        if len(self._data) < len(_MAGIC):
+            self.error = EndOfFile("file ends inside the magic bytes")
+            return
+        reader = StreamReader(
+            _StrictBytesIO(self._data),
+            validate_crcs=True,
+            # No record can be longer than the file; this stops a corrupt length early.
+            record_size_limit=len(self._data),
         )
-    return recording
+        records = reader.records
+        while True:
+            try:
+                record = next(records)
+            except StopIteration:
+                return
+            except _READ_ERRORS as exc:
+                self.error = exc
+                return
+            yield record
 
 
-def _read_records(
-    data: bytes, path: Path, topics: Collection[str] | None, recording: Recording
-) -> tuple[int, Exception | None]:
-    """Reads ``data``'s records front to back into ``recording``, up to the first unreadable one.
+def _read_json_messages(
+    records: _RecordStream, path: Path, topics: Collection[str] | None, recording: Recording
+) -> int:
+    """Reads the records' JSON messages into ``recording``, up to the first unreadable record.
 
     Returns:
-        The number of messages read (those of topics not decoded included), and the error that
-        stopped the reading: a cut or a corrupt record; None when the records ran to their end.
+        The number of messages read (those of topics not decoded, and camera frames', included).
 
     Raises:
         RecordError: as ``read_recording`` does, for a channel or message it refuses.
     """
     schemas: dict[int, McapSchema] = {}
     channels: dict[int, _ReadChannel] = {}
+    passed_over: set[int] = set()  # the camera frames' channels
     count = 0
-    reader = StreamReader(
-        _StrictBytesIO(data),
-        validate_crcs=True,
-        # No record can be longer than the file; this stops a corrupt length early.
-        record_size_limit=len(data),
-    )
-    records = reader.records
-    while True:
-        try:
-            record = next(records)
-        except StopIteration:
-            return count, None
-        except _READ_ERRORS as exc:
-            return count, exc
+    for record in records:
         if isinstance(record, McapSchema):
             schemas[record.id] = record
         elif isinstance(record, McapChannel):
+            if record.message_encoding == CAMERA_MESSAGE_ENCODING:
+                passed_over.add(record.id)
+                continue
             channel = _read_channel(record, schemas.get(record.schema_id), path)
             channels[record.id] = channel
             recording.messages.setdefault(channel.topic, [])
         elif isinstance(record, McapMessage):
+            count += 1
+            if record.channel_id in passed_over:
+                continue
             channel = channels.get(record.channel_id)
             if topics is None or channel is None or channel.topic in topics:
                 _append_message(recording, channels, record, path)
-            count += 1
+    return count
+
+
+def read_camera_frames(path: str | PathLike[str]) -> dict[str, list[CameraFrame]]:
+    """Reads the camera frames of a recording, recovering what it can from a cut-off file.
+
+    Read front to back as ``read_recording`` reads, each message decoded by ``mcap_protobuf``
+    from the Foxglove schema the file holds; a frame is an image and the annotations logged at
+    its time. A frame whose annotations were cut off is left out, and a cut file gives a
+    ``TruncatedRecordingWarning`` naming the file and the number of frames recovered.
+
+    Args:
+        path: The MCAP file.
+
+    Returns:
+        Camera name -> its frames in file (time) order; a camera whose topics were registered but
+        hold no frame maps to an empty list. Each frame's ``rgb`` is the decoded JPEG, so within
+        JPEG error of the image written; its boxes, measurement and time are those written (the
+        time to the nanosecond).
+
+    Raises:
+        MissingFileError: If the file does not exist.
+        RecordError: If the file is not MCAP (bad magic), or a camera topic's message cannot be
+            decoded (the message names the file and the topic).
+    """
+    path = Path(path)
+    records = _RecordStream(_read_mcap_bytes(path))
+    reader = _FrameReader(path)
+    for record in records:
+        reader.read(record)
+    if records.error is not None:
+        count = sum(len(camera_frames) for camera_frames in reader.frames.values())
+        _warn_truncated(path, records.error, f"{count} complete camera frames")
+    return reader.frames
+
+
+class _FrameReader:
+    """Decodes a recording's camera messages, record by record, into ``frames``."""
+
+    def __init__(self, path: Path):
+        # Imported here: protobuf decoding is needed only where frames are read back.
+        from mcap_protobuf.decoder import DecoderFactory
+
+        self.frames: dict[str, list[CameraFrame]] = {}
+        self._path = path
+        self._decoders = DecoderFactory()
+        self._schemas: dict[int, McapSchema] = {}
+        # Channel id -> (topic, camera, whether it carries images, decoder).
+        self._channels: dict[int, tuple[str, str, bool, Any]] = {}
+        # Camera -> its last image (log time, message), until its annotations come.
+        self._images: dict[str, tuple[int, Any]] = {}
+
+    def read(self, record) -> None:
+        """Takes in the file's next record."""
+        if isinstance(record, McapSchema):
+            self._schemas[record.id] = record
+        elif isinstance(record, McapChannel):
+            self._add_channel(record)
+        elif isinstance(record, McapMessage) and record.channel_id in self._channels:
+            self._add_message(record)
+
+    def _add_channel(self, channel: McapChannel) -> None:
+        camera = camera_of_topic(channel.topic)
+        if camera is None:
+            return
+        carries_images = channel.topic == image_topic(camera)
+        expected = (CompressedImage if carries_images else ImageAnnotations).get_schema().name
+        schema = self._schemas.get(channel.schema_id)
+        if (
+            channel.message_encoding != CAMERA_MESSAGE_ENCODING
+            or schema is None
+            or (schema.name != expected)
+        ):
+            raise RecordError(
+                f"{self._path}: topic {channel.topic!r} carries "
+                f"{channel.message_encoding!r} {schema.name if schema else 'schemaless'!r} "
+                f"messages, expected {CAMERA_MESSAGE_ENCODING!r} {expected!r}"
+            )
+        decoder = self._decoders.decoder_for(channel.message_encoding, schema)
+        self._channels[channel.id] = (channel.topic, camera, carries_images, decoder)
+        self.frames.setdefault(camera, [])
+
+    def _add_message(self, message: McapMessage) -> None:
+        topic, camera, carries_images, decode = self._channels[message.channel_id]
+        try:
+            decoded = decode(message.data)
+        except DecodeError as error:
+            raise RecordError(
+                f"{self._path}: topic {topic!r}: undecodable message ({error})"
+            ) from None
+        if carries_images:
+            self._images[camera] = (message.log_time, decoded)
+            return
+        image = self._images.pop(camera, None)
+        if image is None or image[0] != message.log_time:
+            return  # annotations whose image is not in the file: no frame
+        try:
+            self.frames[camera].append(frame_from_messages(camera, image[1], decoded))
+        except ValueError as error:
+            raise RecordError(f"{self._path}: topic {topic!r}: {error}") from None
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,8 @@
 """The architecture's one-way imports, checked on the source.
 
-Assets and errors <- the recording format <- systems <- analysis <- diagrams (the library) <-
-commands and the CLI. No command imports another, and only the command layer knows argparse.
+Assets, errors and sensor names <- camera frames and the recording format <- systems <- analysis <-
+diagrams (the library) <- commands and the CLI. No command imports another, and only the command
+layer knows argparse.
 """
 
 import ast
@@ -16,6 +17,8 @@ PACKAGE_FOLDERS = ("systems", "analysis", "diagrams", "assets")
 LAYERS = {
     "maskless.errors": 0,
     "maskless.assets": 0,
+    "maskless.sensor_names": 0,
+    "maskless.camera_images": 1,
     "maskless.recording": 1,
     "maskless.systems": 2,
     "maskless.analysis": 3,
@@ -38,7 +41,8 @@ def module_name(path: Path) -> str:
 
 
 def library_modules() -> list[Path]:
-    paths = [ROOT / "errors.py", ROOT / "recording.py"]
+    # The top-level modules, then the subpackages' (the root's __init__ imports nothing itself).
+    paths = sorted(path for path in ROOT.glob("*.py") if path.name != "__init__.py")
     for folder in PACKAGE_FOLDERS:
         paths += sorted((ROOT / folder).rglob("*.py"))
     return paths

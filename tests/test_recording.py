@@ -1,13 +1,28 @@
 """Tests for maskless.recording (MCAP write/read of simulation recordings)."""
 
+import hashlib
 import json
 import struct
 import warnings
 
 import numpy as np
 import pytest
+from camera_frames import (
+    boxes_by_role,
+    empty_frame,
+    face_frame,
+    jpeg_pixels,
+    mean_abs_difference,
+)
+from foxglove.messages import CompressedImage, RawImage
+from mcap.decoder import DecoderFactory as McapDecoderFactory
 from mcap.reader import make_reader
+from mcap.records import Channel as McapChannel
+from mcap.records import Message as McapMessage
+from mcap.records import Schema as McapSchema
+from mcap.stream_reader import StreamReader
 from mcap.writer import Writer
+from mcap_protobuf.decoder import DecoderFactory
 from version1_recording import write_version1_recording
 
 from maskless.errors import RecordError
@@ -21,10 +36,12 @@ from maskless.recording import (
     TruncatedRecordingWarning,
     current_name,
     filter_estimate_topic,
+    read_camera_frames,
     read_recording,
     schema_for_topic,
     sensor_measurement_topic,
     write_recording,
+    write_recording_batches,
 )
 
 SENSORS = ("kinect_v1", "kinect_v2")
@@ -602,3 +619,327 @@ def test_a_schema_that_is_not_maskless_reads_as_it_is(tmp_path):
     path = tmp_path / "other.mcap"
     _write_with_schema(path, "/imu", "vendor.Imu", {"current_a": 1.5})
     assert read_recording(path).messages == {"/imu": [(1, {"current_a": 1.5})]}
+
+
+# Camera frames: two cameras interleaved with the JSON topics, their times tying with some of them.
+MS = 1_000_000
+
+
+def _frames():
+    frames = []
+    for k in range(4):
+        frames.append(face_frame("kinect_v1", time_s=k * 0.1, distance_m=0.8 + k / 100, shift=k))
+        frames.append(
+            empty_frame("kinect_v2", time_s=0.05 + k * 0.1)
+            if k % 2
+            else face_frame("kinect_v2", time_s=0.05 + k * 0.1, shift=10 + k)
+        )
+    return frames
+
+
+def _by_camera(frames):
+    cameras = {}
+    for frame in frames:
+        cameras.setdefault(frame.camera, []).append(frame)
+    return cameras
+
+
+class _JsonDecoders(McapDecoderFactory):
+    def decoder_for(self, message_encoding, schema):
+        return json.loads if message_encoding == "json" else None
+
+
+def _decoded_messages(path):
+    """(schema, channel, message, decoded) from the upstream reader and mcap_protobuf's decoder."""
+    with open(path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory(), _JsonDecoders()])
+        return list(reader.iter_decoded_messages(log_time_order=False))
+
+
+def test_frames_are_foxglove_protobuf_messages_merged_in_log_time(tmp_path):
+    channels, frames = _make_channels(), _frames()
+    path = tmp_path / "run.mcap"
+    write_recording(path, channels, frames)
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    schemas = {s.name: s.encoding for s in summary.schemas.values()}
+    assert schemas["foxglove.CompressedImage"] == "protobuf"
+    assert schemas["foxglove.ImageAnnotations"] == "protobuf"
+    camera_channels = {c.topic: c.message_encoding for c in summary.channels.values()}
+    for camera in ("kinect_v1", "kinect_v2"):
+        assert camera_channels[f"/cameras/{camera}/image"] == "protobuf"
+        assert camera_channels[f"/cameras/{camera}/annotations"] == "protobuf"
+
+    decoded = _decoded_messages(path)
+    file_times = [message.log_time for _, _, message, _ in decoded]
+    assert file_times == sorted(file_times)
+    images, annotations = {}, {}
+    for _, channel, message, proto in decoded:
+        *_, camera, kind = channel.topic.split("/")
+        if kind in ("image", "annotations"):
+            assert message.publish_time == message.log_time
+            assert message.log_time == proto.timestamp.seconds * 10**9 + proto.timestamp.nanos
+            (images if kind == "image" else annotations).setdefault(camera, []).append(
+                (message.log_time, proto)
+            )
+    for camera, written in _by_camera(frames).items():
+        assert [t for t, _ in images[camera]] == [round(f.time_s * 1e9) for f in written]
+        assert [t for t, _ in annotations[camera]] == [round(f.time_s * 1e9) for f in written]
+        for frame, (_, image), (_, boxes) in zip(
+            written, images[camera], annotations[camera], strict=True
+        ):
+            assert image.frame_id == camera
+            assert mean_abs_difference(jpeg_pixels(image.data), frame.rgb) < 2.0
+            expected = {
+                "face": [frame.face_box],
+                "eye": list(frame.eye_boxes),
+                "depth_region": [frame.region_box],
+            }
+            assert boxes_by_role(boxes) == {
+                k: v for k, v in expected.items() if v not in ([None], [])
+            }
+
+    # The JSON messages are those of a file without frames, in the same order.
+    plain = tmp_path / "plain.mcap"
+    write_recording(plain, channels)
+    json_messages = [(c.topic, m.log_time, m.data) for _, c, m in _upstream_messages(plain)]
+    assert [
+        (c.topic, m.log_time, m.data) for _, c, m, _ in decoded if c.message_encoding == "json"
+    ] == json_messages
+
+
+def test_a_frame_at_the_time_of_json_messages_follows_them(tmp_path):
+    t = np.array([0, 100 * MS], dtype=np.int64)
+    reference = Channel(REFERENCE_TOPIC, t, {"reference_head_height_m": np.array([0.1, 0.2])})
+    path = tmp_path / "ties.mcap"
+    write_recording(path, [reference], [face_frame(time_s=0.1)])
+    order = [(m.log_time, c.topic) for _, c, m in _upstream_messages(path)]
+    assert order == [
+        (0, REFERENCE_TOPIC),
+        (100 * MS, REFERENCE_TOPIC),
+        (100 * MS, "/cameras/kinect_v1/image"),
+        (100 * MS, "/cameras/kinect_v1/annotations"),
+    ]
+
+
+def test_each_schema_is_written_before_its_channels_first_message(tmp_path):
+    path = tmp_path / "run.mcap"
+    write_recording(path, _make_channels(), _frames())
+    first_seen = {}
+    schema_of_channel, channel_of_message = {}, {}
+    with open(path, "rb") as stream:
+        records = list(StreamReader(stream).records)
+    for index, record in enumerate(records):
+        if isinstance(record, McapSchema):
+            first_seen.setdefault(("schema", record.id), index)
+        elif isinstance(record, McapChannel):
+            first_seen.setdefault(("channel", record.id), index)
+            schema_of_channel[record.id] = record.schema_id
+        elif isinstance(record, McapMessage):
+            channel_of_message.setdefault(record.channel_id, index)
+    assert len(channel_of_message) == 12  # eight JSON topics, two per camera
+    for channel_id, first_message in channel_of_message.items():
+        schema = first_seen[("schema", schema_of_channel[channel_id])]
+        assert schema < first_seen[("channel", channel_id)] < first_message
+
+
+# sha256 of `write_recording(path, _make_channels(seed=3))` as the code before camera frames wrote
+# it (commit 193882f, mcap 1.6.0): without frames, a file must not change by a byte.
+BEFORE_FRAMES_SHA256 = "31427cef17622c9ef64af0d5fe4585284b5533ff8f1e800b3f4fda78c2ea0728"
+
+
+def test_without_frames_the_bytes_are_those_written_before_frames_existed(tmp_path):
+    channels = _make_channels(seed=3)
+    old_call, no_frames, writer = (tmp_path / f"{n}.mcap" for n in ("old", "none", "writer"))
+    write_recording(old_call, channels)
+    write_recording(no_frames, channels, frames=())
+    with RecordingWriter(writer, [c.topic for c in channels], cameras=()) as recording:
+        recording.write(channels, frames=())
+    assert old_call.read_bytes() == no_frames.read_bytes() == writer.read_bytes()
+    assert hashlib.sha256(old_call.read_bytes()).hexdigest() == BEFORE_FRAMES_SHA256
+
+
+def test_identical_frames_give_identical_bytes(tmp_path):
+    a, b = tmp_path / "a.mcap", tmp_path / "b.mcap"
+    write_recording(a, _make_channels(seed=3), _frames())
+    write_recording(b, _make_channels(seed=3), _frames())
+    assert a.read_bytes() == b.read_bytes()
+    assert a.read_bytes() != _write_bytes(tmp_path / "c.mcap", _make_channels(seed=3))
+
+
+class _Connection:
+    """What a worker's serve function reads: the batches sent, then None."""
+
+    def __init__(self, batches):
+        self._batches = iter([*batches, None])
+
+    def recv(self):
+        return next(self._batches)
+
+
+def test_batches_of_frames_give_the_bytes_of_one_write(tmp_path):
+    channels, frames = _make_channels(seed=3), _frames()
+    whole = tmp_path / "whole.mcap"
+    write_recording(whole, channels, frames)
+    cut_s = 0.2
+    early_frames = [f for f in frames if f.time_s < cut_s]
+    late_frames = [f for f in frames if f.time_s >= cut_s]
+    early, late = _split_at(channels, round(cut_s * 1e9))
+    cameras = ["kinect_v1", "kinect_v2"]  # in the order of their first frames
+    batched = tmp_path / "batched.mcap"
+    with RecordingWriter(batched, [c.topic for c in channels], cameras) as writer:
+        writer.write(early, early_frames)
+        writer.write(late, late_frames)
+    assert batched.read_bytes() == whole.read_bytes()
+    # The worker takes (channels, frames) pairs.
+    served = tmp_path / "served.mcap"
+    write_recording_batches(
+        _Connection([(early, early_frames), (late, late_frames)]), served, cameras
+    )
+    assert served.read_bytes() == whole.read_bytes()
+
+
+def test_the_worker_takes_lists_of_channels_and_pairs_alike(tmp_path):
+    channels = _make_channels(seed=3)
+    whole = tmp_path / "whole.mcap"
+    write_recording(whole, channels)
+    early, late = _split_at(channels, 200 * MS)
+    for batches in ([early, late], [(early, ()), late], [early, (late, [])]):
+        served = tmp_path / "served.mcap"
+        write_recording_batches(_Connection(batches), served)
+        assert served.read_bytes() == whole.read_bytes()
+
+
+def test_reading_a_recording_with_frames_passes_over_them(tmp_path):
+    channels = _make_channels(seed=7)
+    plain, with_frames = tmp_path / "plain.mcap", tmp_path / "frames.mcap"
+    write_recording(plain, channels)
+    write_recording(with_frames, channels, _frames())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nothing to warn about on a whole file
+        recording = read_recording(with_frames)
+    assert recording.truncated is False
+    assert recording.messages == read_recording(plain).messages
+
+
+def _assert_same_frames(got, written):
+    """``got`` reads back as ``written``: boxes, measurement and time, pixels within JPEG error."""
+    assert len(got) == len(written)
+    for back, frame in zip(got, written, strict=True):
+        assert (back.camera, back.time_ns) == (frame.camera, frame.time_ns)  # to the ns
+        assert (back.face_box, back.eye_boxes, back.region_box) == (
+            frame.face_box,
+            frame.eye_boxes,
+            frame.region_box,
+        )
+        assert back.valid == frame.valid
+        np.testing.assert_equal(back.distance_m, frame.distance_m)
+        assert mean_abs_difference(back.rgb, frame.rgb) < 2.0
+
+
+def test_camera_frames_read_back_as_written(tmp_path):
+    frames = _frames()
+    path = tmp_path / "run.mcap"
+    write_recording(path, _make_channels(), frames)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = read_camera_frames(path)
+    assert list(got) == ["kinect_v1", "kinect_v2"]
+    for camera, written in _by_camera(frames).items():
+        _assert_same_frames(got[camera], written)
+
+
+def test_cameras_without_frames_read_back_empty_and_files_without_cameras_as_none(tmp_path):
+    path = tmp_path / "quiet.mcap"
+    channels = _make_channels()
+    with RecordingWriter(path, [c.topic for c in channels], cameras=["kinect_v1"]) as writer:
+        writer.write(channels)
+    assert read_camera_frames(path) == {"kinect_v1": []}
+    write_recording(path, channels)
+    assert read_camera_frames(path) == {}
+    with pytest.raises(FileNotFoundError, match="absent.mcap"):
+        read_camera_frames(tmp_path / "absent.mcap")
+
+
+def test_a_cut_file_gives_the_frames_before_the_cut(tmp_path):
+    frames = _frames()
+    full_path = tmp_path / "full.mcap"
+    write_recording(full_path, _make_channels(), frames)
+    data = full_path.read_bytes()
+    # Independent reference: the upstream reader's topics in file order, with the MCAP framing's
+    # record ends. A frame is whole once its annotations message (after its image) is.
+    messages = [(c.topic, m.log_time) for _, c, m in _upstream_messages(full_path)]
+    ends = _message_record_ends(data)
+    assert len(ends) == len(messages)
+    by_time = {(f.camera, f.time_ns): f for f in frames}
+    # Each frame, in file order, with the end of its annotations.
+    file_frames = [
+        (by_time[(topic.split("/")[2], t)], end)
+        for (topic, t), end in zip(messages, ends, strict=True)
+        if topic.endswith("/annotations")
+    ]
+    annotation_ends = [end for _, end in file_frames]
+    image_ends = [end for (t, _), end in zip(messages, ends, strict=True) if t.endswith("/image")]
+    cuts = [
+        len(data) // 3,
+        len(data) // 2,
+        len(data) - 10,  # inside the footer: every frame is whole
+        annotation_ends[3],  # at a record boundary, just after a frame
+        annotation_ends[3] - 1,  # one byte short of that frame's annotations
+        image_ends[5] + 5,  # after an image whose annotations are lost
+        len(MAGIC) + 3,  # inside the header record
+    ]
+    for cut in cuts:
+        cut_path = tmp_path / f"cut_{cut}.mcap"
+        cut_path.write_bytes(data[:cut])
+        whole = [frame for frame, end in file_frames if end <= cut]
+        with pytest.warns(TruncatedRecordingWarning, match=rf"cut_{cut}\.mcap.* {len(whole)} "):
+            got = read_camera_frames(cut_path)
+        for camera, written in _by_camera(whole).items():
+            _assert_same_frames(got[camera], written)
+        assert sum(len(v) for v in got.values()) == len(whole), f"cut at byte {cut}"
+
+
+def test_bad_frames_are_refused_naming_the_camera_before_the_file_is_written(tmp_path):
+    path = tmp_path / "bad.mcap"
+    back_in_time = [face_frame(time_s=0.2), face_frame(time_s=0.1)]
+    with pytest.raises(ValueError, match="camera 'kinect_v1': frame times must be non-decreasing"):
+        write_recording(path, [], back_in_time)
+    with pytest.raises(ValueError, match=r"frames\[1\]: expected a CameraFrame, got dict"):
+        write_recording(path, [], [face_frame(), {"camera": "kinect_v1"}])
+    assert not path.exists()
+    channels = _make_channels()
+    with RecordingWriter(path, [c.topic for c in channels], cameras=["kinect_v1"]) as writer:
+        with pytest.raises(ValueError, match=r"camera 'zed': not one of the recording's cameras"):
+            writer.write(channels, [face_frame("zed")])
+    for cameras, match in ((["kinect_v1", "kinect_v1"], "cameras repeat"), (["a b"], "'a b'")):
+        with pytest.raises(ValueError, match=match):
+            RecordingWriter(tmp_path / "other.mcap", [], cameras)
+    assert not (tmp_path / "other.mcap").exists()
+
+
+def _write_camera_topic(path, topic, message_class, data):
+    schema = message_class.get_schema()
+    with open(path, "wb") as stream:
+        writer = Writer(stream)
+        writer.start()
+        schema_id = writer.register_schema(schema.name, schema.encoding, bytes(schema.data))
+        channel_id = writer.register_channel(topic, "protobuf", schema_id)
+        writer.add_message(channel_id, log_time=1, data=data, publish_time=1)
+        writer.finish()
+
+
+def test_a_camera_topic_of_another_schema_or_undecodable_is_refused_naming_file_and_topic(
+    tmp_path,
+):
+    raw = tmp_path / "raw.mcap"
+    _write_camera_topic(raw, "/cameras/kinect_v1/image", RawImage, RawImage(width=1).encode())
+    with pytest.raises(
+        RecordError, match=r"raw\.mcap: topic '/cameras/kinect_v1/image' .*foxglove.RawImage"
+    ):
+        read_camera_frames(raw)
+    assert read_recording(raw).messages == {}  # the JSON reader passes over it
+    broken = tmp_path / "broken.mcap"
+    _write_camera_topic(broken, "/cameras/kinect_v1/image", CompressedImage, b"\xff")
+    with pytest.raises(RecordError, match=r"broken\.mcap: topic '/cameras/kinect_v1/image'"):
+        read_camera_frames(broken)

@@ -171,13 +171,17 @@ def excite(scenario: Scenario, request: ExcitationRequest) -> ExcitationRun:
 def excite_to_files(scenario: Scenario, request: ExcitationRequest, out: str | Path) -> dict:
     """``excite``, writing OUT/run.mcap and OUT/run.png (``maskless excite``).
 
-    Returns the summary with the files written (``files``).
+    With rendered cameras, the recording holds their images and OUT/frames.png shows each
+    camera's first and last one. Returns the summary with the files written (``files``).
     """
     experiment = excite(scenario, request)
     out = Path(out)
     mcap_path = experiment.run.write_mcap(out / "run.mcap")
     png_path = experiment.run.plot(out / "run.png", show_tolerance=False)
-    return {**experiment.summary, "files": {"recording": str(mcap_path), "plot": str(png_path)}}
+    files = {"recording": str(mcap_path), "plot": str(png_path)}
+    if experiment.run.frames:
+        files["frames"] = str(experiment.run.plot_frames(out / "frames.png"))
+    return {**experiment.summary, "files": files}
 
 
 def build_excitation_loop(

@@ -80,6 +80,19 @@ class SimulationRun:
         write_recording(path, self.recording_channels(), frames=self.frames)
         return path
 
+    def first_and_last_frames(self) -> dict[str, list[CameraFrame]]:
+        """Each rendered camera's first and last recorded frame (what frames.png shows)."""
+        by_camera: dict[str, list[CameraFrame]] = {}
+        for frame in self.frames:
+            by_camera.setdefault(frame.camera, []).append(frame)
+        return {camera: [frames[0], frames[-1]] for camera, frames in by_camera.items()}
+
+    def plot_frames(self, path: str | Path) -> Path:
+        """Draws each rendered camera's first and last frame with its boxes to ``path`` (PNG)."""
+        from maskless.analysis.camera_frames_plot import plot_camera_frames
+
+        return plot_camera_frames(output_file(path), self.first_and_last_frames())
+
     def plot_arguments(self, show_tolerance: bool = True) -> dict:
         """``plot_closed_loop``'s keyword arguments, as arrays and strings.
 
@@ -182,12 +195,14 @@ def simulate_loop(
 def simulate_to_files(scenario: Scenario, out: str | Path) -> dict:
     """Simulates ``scenario``, writing OUT/run.mcap and OUT/run.png (``maskless simulate``).
 
-    The recording is written while the loop runs, the plot after. Runs of 10 minutes or more
-    report progress on stderr.
+    With rendered cameras, the recording holds their images too and OUT/frames.png shows each
+    camera's first and last recorded frame. The recording is written while the loop runs, the
+    plots after. Runs of 10 minutes or more report progress on stderr.
 
     Returns:
         The run's metrics with its timing and the files written (``files``).
     """
+    from maskless.analysis.camera_frames_plot import plot_camera_frames
     from maskless.analysis.closed_loop_plots import plot_closed_loop, prepare_plotting
     from maskless.diagrams.background import Worker, serve_calls
     from maskless.recording import write_recording_batches
@@ -198,19 +213,32 @@ def simulate_to_files(scenario: Scenario, out: str | Path) -> dict:
     out = output_folder(out)
     mcap_path, png_path = out / "run.mcap", out / "run.png"
     camera_names = list(scenario.cameras)
+    rendered = rendered_camera_names(scenario)
     # The second core works while the loop runs: one worker writes the recording as the samples
     # come in, another imports matplotlib and then plots.
-    recorder = Worker(f"writing {mcap_path}", write_recording_batches, mcap_path)
+    recorder = Worker(f"writing {mcap_path}", write_recording_batches, mcap_path, rendered)
     plotter = Worker(f"plotting {png_path}", serve_calls, prepare_plotting)
     long_run = scenario.duration_s >= _PROGRESS_MIN_DURATION_S
     run = simulate(
         scenario,
         progress=report_progress if long_run else None,
-        on_chunk=lambda signals: recorder.send(signal_channels(signals, camera_names)),
+        on_chunk=lambda signals, frames: recorder.send(
+            (signal_channels(signals, camera_names), frames)
+        ),
     )
     plotter.send((plot_closed_loop, (png_path,), run.plot_arguments()))
+    files = {"recording": str(mcap_path), "plot": str(png_path)}
+    if rendered:
+        frames_path = out / "frames.png"
+        plotter.send((plot_camera_frames, (frames_path, run.first_and_last_frames()), {}))
+        files["frames"] = str(frames_path)
     summary = summary_with_timing(run)
     recorder.wait()
     plotter.wait()
-    summary["files"] = {"recording": str(mcap_path), "plot": str(png_path)}
+    summary["files"] = files
     return summary
+
+
+def rendered_camera_names(scenario: Scenario) -> list[str]:
+    """The scenario's cameras that are rendered, in order."""
+    return [name for name, camera in scenario.cameras.items() if camera.rendering.enabled]

@@ -11,7 +11,7 @@ from maskless.diagrams.excitation_run import ExcitationRequest, build_excitation
 from maskless.diagrams.scenario import load_scenario
 from maskless.diagrams.simulation import simulate_loop
 from maskless.errors import ConfigError
-from maskless.recording import read_recording
+from maskless.recording import read_camera_frames, read_recording
 from maskless.systems.control.excitation import ExcitationSignal
 from maskless.systems.plant.pneumatic_physics import LIFT
 from maskless.systems.plant.pneumatic_plant import equilibrium_state
@@ -115,3 +115,14 @@ def test_bad_arguments_are_refused(tmp_path, capsys):
         main(["excite", "--band", "1-2"])
     assert "LOW:HIGH" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_excite_with_rendered_cameras_records_their_frames(tmp_path, capsys):
+    out = tmp_path / "rendered"
+    args = ["excite", "--signal", "prbs", "--duration", "2", "--sensors", "rendered"]
+    assert main([*args, "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert (out / "frames.png").stat().st_size > 10_000
+    assert summary["files"]["frames"] == str(out / "frames.png")
+    frames = read_camera_frames(out / "run.mcap")
+    assert sorted(frames) == ["kinect_v1", "kinect_v2"]

@@ -11,7 +11,7 @@ from maskless.diagrams.scenario import (
     plant_from_shorthand,
 )
 from maskless.diagrams.simulation import simulate
-from maskless.recording import read_recording, write_recording
+from maskless.recording import read_camera_frames, read_recording, write_recording
 
 
 def test_simulate_writes_recording_plot_and_json_summary(tmp_path, capsys):
@@ -85,3 +85,52 @@ def test_the_streamed_recording_is_the_one_shot_recording_of_the_same_run(
     config.controller = controller_from_shorthand(controller)
     write_recording(tmp_path / "whole.mcap", simulate(config).recording_channels())
     assert (tmp_path / "run.mcap").read_bytes() == (tmp_path / "whole.mcap").read_bytes()
+
+
+def test_rendered_cameras_record_their_images_and_draw_their_first_and_last_frames(
+    tmp_path, capsys
+):
+    out = tmp_path / "rendered"
+    args = ["simulate", "--sensors", "rendered", "--duration", "2", "--image-rate", "3"]
+    assert main([*args, "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["files"]["frames"] == str(out / "frames.png")
+    assert (out / "frames.png").stat().st_size > 10_000
+    # Both cameras' local filters took valid measurements from the rendered images.
+    for camera in ("kinect_v1", "kinect_v2"):
+        assert summary["estimation"][f"{camera}_valid_fraction"] > 0.9
+    frames = read_camera_frames(out / "run.mcap")
+    assert sorted(frames) == ["kinect_v1", "kinect_v2"]
+    for camera_frames in frames.values():
+        # 3 images a second at 15 frames a second: every 5th frame, t = 0, 1/3, ..., 2 s.
+        assert [round(f.time_s, 6) for f in camera_frames] == [round(k / 3, 6) for k in range(7)]
+        assert all(f.valid and f.face_box is not None for f in camera_frames)
+        assert all(len(f.eye_boxes) == 2 for f in camera_frames)
+
+
+def test_a_rendered_run_is_the_same_recording_for_the_same_seed(tmp_path):
+    recordings = []
+    for attempt in range(2):
+        out = tmp_path / f"run{attempt}"
+        assert (
+            main(["simulate", "--sensors", "rendered", "--duration", "1", "--out", str(out)]) == 0
+        )
+        recordings.append((out / "run.mcap").read_bytes())
+    assert recordings[0] == recordings[1]
+    assert b"foxglove.CompressedImage" in recordings[0]
+    other = tmp_path / "other"
+    args = ["simulate", "--sensors", "rendered", "--duration", "1", "--seed", "1"]
+    assert main([*args, "--out", str(other)]) == 0
+    assert (other / "run.mcap").read_bytes() != recordings[0]
+
+
+def test_sensors_model_turns_a_rendered_config_back_to_the_formulas(tmp_path, capsys):
+    config = tmp_path / "rendered.yaml"
+    config.write_text("cameras:\n  kinect_v1:\n    rendering:\n      enabled: true\n")
+    args = ["simulate", "--duration", "1", "--config", str(config), "--out", str(tmp_path)]
+    assert main([*args, "--sensors", "model", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert "frames" not in summary["files"]
+    assert main([*args, "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert list(read_camera_frames(tmp_path / "run.mcap")) == ["kinect_v1"]

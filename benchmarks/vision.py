@@ -11,6 +11,9 @@ Prints one JSON line (with the machine it ran on). Sections, each selectable wit
   ``distance_m`` on valid frames) as std and variance, its autocorrelation time (the lag where the
   sample autocorrelation first drops below 1/e) and its bias against the true camera-to-face
   distance, beside the paper's measured variances (22.7 / 11.5 mm^2) and the per-pixel formulas.
+- regions: the still head's raw measurement read in other regions by other statistics (the eye
+  band's interquartile mean, which the sensor uses; the face box's interquartile mean, mean and
+  median; the face box's centre pixel), each frame's depth noise drawn afresh.
 - loop: `maskless simulate --sensors rendered` in process (recording and frames.png included):
   real-time factor, beside the model-sensor loop.
 - accuracy: --seeds seeds of the default 120 s scenario (5 mm step at 10 s), rendered and model
@@ -27,6 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import Simulator
@@ -37,14 +41,24 @@ from pydrake.trajectories import PiecewisePolynomial
 from maskless.diagrams.scenario import cameras_measured_by, load_scenario
 from maskless.diagrams.simulation import simulate, simulate_to_files
 from maskless.systems.sensing.camera_scene import add_camera_scene
+from maskless.systems.sensing.depth_image_noise import kinect_depth_image
 from maskless.systems.sensing.depth_sensor import kinect_v1_noise_std_m, kinect_v2_noise_std_m
-from maskless.systems.sensing.rendered_depth_sensor import add_rendered_depth_sensor
+from maskless.systems.sensing.face_detection import (
+    FaceFinder,
+    find_face_region,
+    region_distance_m,
+    scale_box,
+)
+from maskless.systems.sensing.rendered_depth_sensor import (
+    add_rendered_depth_sensor,
+    add_rgbd_sensor,
+)
 from maskless.systems.units import m_to_mm
 
 sys.path.insert(0, str(Path(__file__).parent))
 from machine import machine_description  # noqa: E402
 
-SECTIONS = ("speed", "detection", "still", "loop", "accuracy")
+SECTIONS = ("speed", "detection", "still", "regions", "loop", "accuracy")
 WORKING_LIFT_M = 0.018  # `maskless analyze operating-range`: the inlet spans 0-18.11 mm
 STEP_TIME_S = 10.0  # the default scenario's step
 WINDOW_AFTER_STEP_S = 20.0
@@ -178,6 +192,59 @@ def still(scenario, duration_s: float, seed: int) -> dict:
     return result
 
 
+REGION_READINGS = {
+    "eye_band_interquartile_mean": ("eyes", region_distance_m),
+    "face_box_interquartile_mean": ("face", region_distance_m),
+    "face_box_mean": ("face", lambda depth: depth[depth > 0].mean()),
+    "face_box_median": ("face", lambda depth: np.median(depth[depth > 0])),
+    "face_box_centre_pixel": ("centre", lambda depth: depth[depth > 0].mean()),
+}
+
+
+def regions(scenario, frames: int, seed: int) -> dict:
+    """Bias and variance of the still head's measurement for each region and statistic."""
+    height = scenario.pneumatic.rest_head_height_m + scenario.start_lift_m
+    builder = DiagramBuilder()
+    head = builder.AddSystem(TrajectorySource(_constant(height)))
+    scene = add_camera_scene(builder, head.get_output_port())
+    sensors = {}
+    for name, camera in scenario.cameras.items():
+        sensors[name] = add_rgbd_sensor(builder, name, scene, camera)
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    rng = np.random.default_rng(seed)
+    result = {}
+    for name, camera in scenario.cameras.items():
+        sensor_context = sensors[name].GetMyContextFromRoot(context)
+        rgb = sensors[name].color_image_output_port().Eval(sensor_context).data
+        depth = sensors[name].depth_image_32F_output_port().Eval(sensor_context).data[:, :, 0]
+        gray = cv2.cvtColor(rgb, cv2.COLOR_RGBA2GRAY)
+        scale = camera.rendering.color_scale
+        found = find_face_region(FaceFinder(1 / scale), gray, None)
+        x, y, w, h = scale_box(found.face_box, 1 / scale)
+        boxes = {
+            "eyes": scale_box(found.region_box, 1 / scale),
+            "face": (x, y, w, h),
+            "centre": (x + w // 2, y + h // 2, 1, 1),
+        }
+        true_m = camera.mount_height_m - height
+        result[name] = {}
+        for reading, (box_name, statistic) in REGION_READINGS.items():
+            bx, by, bw, bh = boxes[box_name]
+            exact = depth[by : by + bh, bx : bx + bw]
+            values = np.array(
+                [statistic(kinect_depth_image(exact, camera, 0.0, rng)) for _ in range(frames)],
+                dtype=np.float64,
+            )
+            values = values[np.isfinite(values)]
+            result[name][reading] = {
+                "bias_mm": float(m_to_mm(values.mean() - true_m)),
+                "variance_mm2": float(m_to_mm(m_to_mm(values.var()))),
+                "pixels": bw * bh,
+            }
+    return result
+
+
 def loop(duration_s: float) -> dict:
     """The rendered closed loop as `maskless simulate --sensors rendered` runs it, and the model."""
     result = {}
@@ -221,6 +288,7 @@ def main():
     parser.add_argument("--still-s", type=float, default=120.0, help="still-head seconds")
     parser.add_argument("--loop-s", type=float, default=30.0, help="closed-loop seconds")
     parser.add_argument("--seeds", type=int, default=5, help="accuracy seeds")
+    parser.add_argument("--region-frames", type=int, default=300, help="frames per region")
     args = parser.parse_args()
     scenario = rendered_scenario()
     figures = {"machine": machine_description()}
@@ -230,6 +298,8 @@ def main():
         figures["detection"] = detection(scenario)
     if "still" in args.only:
         figures["still"] = still(scenario, args.still_s, seed=1)
+    if "regions" in args.only:
+        figures["regions"] = regions(scenario, frames=args.region_frames, seed=2)
     if "loop" in args.only:
         figures["loop"] = loop(args.loop_s)
     if "accuracy" in args.only:

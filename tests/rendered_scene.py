@@ -7,7 +7,7 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from maskless.diagrams.scenario import load_scenario
 from maskless.systems.sensing.camera_scene import add_camera_scene
-from maskless.systems.sensing.rendered_depth_sensor import make_rgbd_sensor
+from maskless.systems.sensing.rendered_depth_sensor import add_rgbd_sensor
 
 
 class _HeadHeight(LeafSystem):
@@ -54,9 +54,7 @@ def build_rendered_scene(cameras) -> RenderedScene:
     scene = add_camera_scene(builder, head.get_output_port())
     sensors = {}
     for name, config in cameras.items():
-        sensor = builder.AddNamedSystem(f"{name}.camera", make_rgbd_sensor(scene, config))
-        builder.Connect(scene.scene_graph.get_query_output_port(), sensor.query_object_input_port())
-        sensors[name] = (config, sensor)
+        sensors[name] = (config, add_rgbd_sensor(builder, name, scene, config))
     diagram = builder.Build()
     return RenderedScene(diagram, diagram.CreateDefaultContext(), sensors)
 

@@ -44,7 +44,11 @@ def library_modules() -> list[Path]:
     # The top-level modules, then the subpackages' (the root's __init__ imports nothing itself).
     paths = sorted(path for path in ROOT.glob("*.py") if path.name != "__init__.py")
     for folder in PACKAGE_FOLDERS:
-        paths += sorted((ROOT / folder).rglob("*.py"))
+        # A script in a folder that is no package (assets/face/make_face.py, which makes an asset
+        # with the library's face finder) is not part of the library.
+        paths += sorted(
+            path for path in (ROOT / folder).rglob("*.py") if (path.parent / "__init__.py").exists()
+        )
     return paths
 
 

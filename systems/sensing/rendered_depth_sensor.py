@@ -95,6 +95,15 @@ def make_rgbd_sensor(scene: CameraScene, config: DepthSensorConfig) -> RgbdSenso
     )
 
 
+def add_rgbd_sensor(
+    builder: DiagramBuilder, name: str, scene: CameraScene, config: DepthSensorConfig
+) -> RgbdSensor:
+    """Adds ``config``'s RgbdSensor as ``{name}.camera``, reading ``scene``'s geometry."""
+    camera = builder.AddNamedSystem(f"{name}.camera", make_rgbd_sensor(scene, config))
+    builder.Connect(scene.scene_graph.get_query_output_port(), camera.query_object_input_port())
+    return camera
+
+
 class FaceDepthSensor(LeafSystem):
     """Measures the camera-to-face distance in a camera's images, once per frame.
 
@@ -260,8 +269,7 @@ def add_rendered_depth_sensor(
     """
     validate_sensor_config(name, config)
     period_s = 1.0 / config.frame_rate_hz
-    camera = builder.AddNamedSystem(f"{name}.camera", make_rgbd_sensor(scene, config))
-    builder.Connect(scene.scene_graph.get_query_output_port(), camera.query_object_input_port())
+    camera = add_rgbd_sensor(builder, name, scene, config)
     seed = builder.AddNamedSystem(
         f"{name}.frame_seed", RandomSource(RandomDistribution.kUniform, 1, period_s)
     )

@@ -220,7 +220,7 @@ def regions(scenario, frames: int, seed: int) -> dict:
         depth = sensors[name].depth_image_32F_output_port().Eval(sensor_context).data[:, :, 0]
         gray = cv2.cvtColor(rgb, cv2.COLOR_RGBA2GRAY)
         scale = camera.rendering.color_scale
-        found = find_face_region(FaceFinder(1 / scale), gray, None)
+        found = find_face_region(FaceFinder(), gray, None)
         x, y, w, h = scale_box(found.face_box, 1 / scale)
         boxes = {
             "eyes": scale_box(found.region_box, 1 / scale),

@@ -415,7 +415,7 @@ def validate_scenario(config: Scenario) -> None:
 
 
 # Names the closed loop gives its own systems; a camera's systems are NAME, NAME.noise (rendered:
-# NAME.camera, NAME.frame_seed, NAME.frames) and NAME_filter, so a camera may take none of these
+# NAME.camera, NAME.seed, NAME.frames) and NAME_filter, so a camera may take none of these
 # (nor a name starting with "log_").
 _LOOP_SYSTEM_NAMES = {
     "reference",

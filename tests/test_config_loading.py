@@ -79,3 +79,19 @@ def test_asset_path_names_a_missing_asset():
     assert asset_path("paper.yaml").is_file()
     with pytest.raises(FileNotFoundError, match="no_such.yaml"):
         asset_path("no_such.yaml")
+
+
+@dataclass
+class _Optional:
+    enabled: bool = False
+    size_m: float = UNSET
+
+
+@dataclass
+class _Holder:
+    section: _Optional = field(default_factory=_Optional)
+
+
+def test_a_disabled_section_needs_nothing_else_set():
+    assert find_unset_fields(_Holder()) == []
+    assert find_unset_fields(_Holder(_Optional(enabled=True))) == ["section.size_m"]

@@ -1,8 +1,8 @@
 """Finding the face and its eyes in a camera image, and reading the face's depth (paper Sec. III-A).
 
 As in the paper: Viola-Jones Haar cascades (OpenCV's stock frontal-face and eye cascades) find the
-face in a downsampled grey image, then the eyes within the face (enlarged again, so the eyes are as
-large as the eye cascade needs). As a tracker would, the face is
+face in a downsampled grey image, then the eyes within the face (enlarged again, where the eyes
+would be smaller than the eye cascade needs). As a tracker would, the face is
 first searched for near where it was in the last frame, at about its last size, and the whole image
 is searched only when that fails.
 
@@ -38,10 +38,18 @@ SCALE_FACTOR = 1.1
 MIN_NEIGHBORS = 4
 # A tracked face is searched for within this fraction of its size around its last box, at sizes
 # within this factor of its last size.
-TRACKING_MARGIN = 0.5
-TRACKING_SIZE_FACTOR = 1.35
+TRACKING_MARGIN = 0.3
+TRACKING_SIZE_FACTOR = 1.2
 # Eyes are searched for in the upper part of the face box, where they are.
 EYE_BAND_FRACTION = 0.6
+# An eye's box is about a quarter to a third of the face box's width (0.25-0.31 on the portrait and
+# on rendered frames); searching only from 0.15 to 0.45 of it skips most of the scale pyramid.
+EYE_TYPICAL_FRACTION = 0.28
+EYE_SIZE_FRACTION = (0.15, 0.45)
+# The eye cascade's own window (pixels): it finds nothing smaller. A face's band is enlarged until
+# a typical eye spans _EYE_SEARCH_SIZE_PX, room above the window for an eye smaller than typical.
+_EYE_WINDOW_PX = 20
+_EYE_SEARCH_SIZE_PX = 26
 # A face box closer than this fraction of the image width to an edge may be cut off.
 EDGE_MARGIN_FRACTION = 0.01
 # The depth region needs at least this fraction of valid pixels.
@@ -92,15 +100,12 @@ def _cascade(file_name: str):
 class FaceFinder:
     """The face and eye cascades, and how to search with them.
 
-    Args:
-        eye_upsampling: the face's box is enlarged by this factor before the eye search, so that
-            the eyes of a face found in a downsampled image are as large as the eye cascade's
-            window (20 x 20 pixels) needs.
+    The eyes of a small face (one found in a downsampled image) are enlarged before the eye
+    search, to the size the eye cascade needs; a large face's are searched as they are.
     """
 
-    def __init__(self, eye_upsampling: float = 1.0):
+    def __init__(self):
         """Loads OpenCV's stock cascades."""
-        self.eye_upsampling = eye_upsampling
         self._face = _cascade(FACE_CASCADE)
         self._eye = _cascade(EYE_CASCADE)
 
@@ -136,11 +141,18 @@ class FaceFinder:
         """Up to two eyes in the upper part of ``face``, left to right, in ``gray``'s pixels."""
         x, y, w, h = face
         band = gray[y : y + int(EYE_BAND_FRACTION * h), x : x + w]
-        factor = self.eye_upsampling
+        factor = max(1.0, _EYE_SEARCH_SIZE_PX / (EYE_TYPICAL_FRACTION * w))
         if factor != 1.0:
             band = cv2.resize(band, None, fx=factor, fy=factor, interpolation=cv2.INTER_LINEAR)
-        eyes = self._eye.detectMultiScale(band, SCALE_FACTOR, MIN_NEIGHBORS)
-        largest_two = sorted(eyes, key=lambda e: -int(e[2]) * int(e[3]))[:2]
+        smallest, largest = (int(fraction * w * factor) for fraction in EYE_SIZE_FRACTION)
+        eyes = self._eye.detectMultiScale(
+            band,
+            SCALE_FACTOR,
+            MIN_NEIGHBORS,
+            minSize=(max(smallest, _EYE_WINDOW_PX),) * 2,
+            maxSize=(max(largest, _EYE_WINDOW_PX + 1),) * 2,
+        )
+        largest_two = sorted((tuple(int(v) for v in e) for e in eyes), key=_largest_first)[:2]
         return tuple(
             sorted(
                 (x + ex, y + ey, ew, eh)
@@ -150,7 +162,17 @@ class FaceFinder:
 
 
 def _largest(boxes) -> Box:
-    return tuple(int(v) for v in max(boxes, key=lambda b: b[2] * b[3]))
+    """The largest box; ties go to the one nearest the top left.
+
+    OpenCV's multithreaded search returns its boxes in an order that varies from run to run, so
+    every choice among them is made by a total order, never by position in the list.
+    """
+    return min((tuple(int(v) for v in b) for b in boxes), key=_largest_first)
+
+
+def _largest_first(box: Box) -> tuple:
+    x, y, w, h = box
+    return (-w * h, y, x)
 
 
 def scale_box(box, factor: float) -> Box:

@@ -8,16 +8,19 @@ local filters, the fusion and the controller are the same for both fidelities.
 
 Timing is the measurement model's: a frame is rendered at each frame tick and its measurement
 reaches the filter at the filter's next tick, one frame later; a configured latency of more frames
-holds it longer. Randomness comes from a RandomSource (``{name}.frame_seed``) that draws one seed
-per frame, so a run seeded with ``diagram.SetRandomContext`` is reproducible bit for bit.
-
-The colour and depth images are evaluated only in the frame tick (and by the frame recorder at the
-same instants, which reads the same cached render), so each frame is rendered once.
+holds it longer. Randomness comes from a RandomSource (``{name}.seed``) that draws the camera's seed
+once, when the run's random context is set; each frame's noise is drawn from the stream numpy's
+SeedSequence makes of that seed and the frame's index. So a run seeded with
+``diagram.SetRandomContext`` is reproducible bit for bit, and the seed does not change within a
+run: the frame recorder, whose publish at a frame tick comes just before the tick's update, reads
+the very measurement the update takes (Drake's cache serves both), and each frame is rendered and
+searched once, recorded or not.
 """
 
 import math
 from collections.abc import Callable
 
+import cv2
 import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
@@ -53,8 +56,10 @@ from maskless.systems.sensing.face_detection import (
 
 # The renderer's clipping planes (m); the camera's working range is applied to the depth image.
 CLIPPING_RANGE_M = (0.05, 10.0)
-# A uniform draw in [0, 1) becomes a 53-bit seed (a double's significand) for the frame's noise.
+# A uniform draw in [0, 1) becomes a 53-bit seed (a double's significand) for the camera's noise.
 _SEED_BITS = 53
+# The seed's RandomSource draws again only after this long (s): never, within any run.
+_SEED_HOLD_S = 1.0e12
 
 # Tracker state: the last face box (x, y, width, height) and whether there was one.
 _TRACK_SIZE = 5
@@ -113,7 +118,7 @@ class FaceDepthSensor(LeafSystem):
         input_ports:
         - color_image
         - depth_image
-        - frame_seed
+        - seed
         output_ports:
         - distance_m
         - valid
@@ -131,18 +136,18 @@ class FaceDepthSensor(LeafSystem):
         """Declares the ports, the tracker and measurement state, and the frame tick."""
         super().__init__()
         self._config = config
-        self._finder = FaceFinder(eye_upsampling=1.0 / config.rendering.color_scale)
+        self._finder = FaceFinder()
         self._color = self.DeclareAbstractInputPort(
             "color_image", AbstractValue.Make(ImageRgba8U())
         )
         self._depth = self.DeclareAbstractInputPort(
             "depth_image", AbstractValue.Make(ImageDepth32F())
         )
-        self._seed = self.DeclareVectorInputPort("frame_seed", 1)
+        self._seed = self.DeclareVectorInputPort("seed", 1)
+        self._period_s = 1.0 / config.frame_rate_hz
         self._track = self.DeclareDiscreteState(_TRACK_SIZE)
         # (distance, valid) per frame still on its way, newest first; the last pair is output.
-        self._frames = latency_frames(config)
-        self._pipeline = self.DeclareDiscreteState(2 * self._frames)
+        self._pipeline = self.DeclareDiscreteState(2 * latency_frames(config))
         self.DeclareVectorOutputPort("distance_m", 1, self._calc_distance)
         self.DeclareVectorOutputPort("valid", 1, self._calc_valid)
         self._measurement = self.DeclareAbstractOutputPort(
@@ -150,12 +155,13 @@ class FaceDepthSensor(LeafSystem):
             lambda: AbstractValue.Make(invalid_measurement("no frame yet")),
             self._calc_measurement,
         )
-        period_s = 1.0 / config.frame_rate_hz
-        self.DeclarePeriodicDiscreteUpdateEvent(period_s, 0.0, self._take_frame)
+        self.DeclarePeriodicDiscreteUpdateEvent(self._period_s, 0.0, self._take_frame)
 
     def _calc_measurement(self, context, output) -> None:
         config = self._config
-        rng = np.random.default_rng(int(self._seed.Eval(context)[0] * 2**_SEED_BITS))
+        seed = int(self._seed.Eval(context)[0] * 2**_SEED_BITS)
+        frame_index = round(context.get_time() / self._period_s)
+        rng = np.random.default_rng([seed, frame_index])
         if rng.random() < config.dropout_probability:
             output.set_value(invalid_measurement("frame dropped"))
             return
@@ -194,8 +200,6 @@ class FaceDepthSensor(LeafSystem):
 
 def _gray(color: np.ndarray) -> np.ndarray:
     """The grey image of an RGBA image, as the cascades take it."""
-    import cv2
-
     return cv2.cvtColor(color, cv2.COLOR_RGBA2GRAY)
 
 
@@ -205,8 +209,10 @@ FrameSink = Callable[[str, float, np.ndarray, FaceMeasurement], None]
 class FrameRecorder(LeafSystem):
     """Hands every ``decimation``-th frame of a camera, with what was found in it, to ``sink``.
 
-    A publish event (a side effect only), at frame ticks, so it reads the very render the
-    measurement is taken from.
+    A publish event (a side effect only), at frame ticks, so it reads the very render and the very
+    measurement the sensor's update takes at that tick. It starts at the second frame: at the
+    first, the seed's RandomSource draws (as every RandomSource does at t = 0) between the
+    publish and the update, so the two would see different noise.
 
     .. pydrake_system::
 
@@ -233,7 +239,7 @@ class FrameRecorder(LeafSystem):
         self._measurement = self.DeclareAbstractInputPort(
             "measurement", AbstractValue.Make(invalid_measurement("no frame yet"))
         )
-        self.DeclarePeriodicPublishEvent(period_s * decimation, 0.0, self._record)
+        self.DeclarePeriodicPublishEvent(period_s * decimation, period_s, self._record)
 
     def _record(self, context) -> None:
         measurement = self._measurement.Eval(context)
@@ -249,7 +255,7 @@ def add_rendered_depth_sensor(
     frame_sink: FrameSink | None = None,
     record_every_frames: int = 1,
 ) -> PortMap:
-    """Adds a rendered camera watching ``scene``: ``name.camera``, ``name.frame_seed``, ``name``.
+    """Adds a rendered camera watching ``scene``: ``name.camera``, ``name.seed``, ``name``.
 
     .. pydrake_system::
 
@@ -271,12 +277,12 @@ def add_rendered_depth_sensor(
     period_s = 1.0 / config.frame_rate_hz
     camera = add_rgbd_sensor(builder, name, scene, config)
     seed = builder.AddNamedSystem(
-        f"{name}.frame_seed", RandomSource(RandomDistribution.kUniform, 1, period_s)
+        f"{name}.seed", RandomSource(RandomDistribution.kUniform, 1, _SEED_HOLD_S)
     )
     sensor = builder.AddNamedSystem(name, FaceDepthSensor(config))
     builder.Connect(camera.color_image_output_port(), sensor.GetInputPort("color_image"))
     builder.Connect(camera.depth_image_32F_output_port(), sensor.GetInputPort("depth_image"))
-    builder.Connect(seed.get_output_port(), sensor.GetInputPort("frame_seed"))
+    builder.Connect(seed.get_output_port(), sensor.GetInputPort("seed"))
     if frame_sink is not None:
         recorder = builder.AddNamedSystem(
             f"{name}.frames", FrameRecorder(name, period_s, record_every_frames, frame_sink)

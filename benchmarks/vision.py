@@ -192,12 +192,17 @@ def still(scenario, duration_s: float, seed: int) -> dict:
     return result
 
 
+def _of_valid(statistic):
+    """``statistic`` of a region's valid (non-zero) depths; NaN when there are none."""
+    return lambda depth: statistic(depth[depth > 0]) if np.any(depth > 0) else np.nan
+
+
 REGION_READINGS = {
     "eye_band_interquartile_mean": ("eyes", region_distance_m),
     "face_box_interquartile_mean": ("face", region_distance_m),
-    "face_box_mean": ("face", lambda depth: depth[depth > 0].mean()),
-    "face_box_median": ("face", lambda depth: np.median(depth[depth > 0])),
-    "face_box_centre_pixel": ("centre", lambda depth: depth[depth > 0].mean()),
+    "face_box_mean": ("face", _of_valid(np.mean)),
+    "face_box_median": ("face", _of_valid(np.median)),
+    "face_box_centre_pixel": ("centre", _of_valid(np.mean)),
 }
 
 

@@ -34,6 +34,8 @@ _EXPORTS = {
     "PaperLqg": "maskless.diagrams.scenario",
     "KinectV1Config": "maskless.systems.sensing.depth_sensor",
     "KinectV2Config": "maskless.systems.sensing.depth_sensor",
+    "CameraRenderingConfig": "maskless.systems.sensing.depth_sensor",
+    "cameras_measured_by": "maskless.diagrams.scenario",
     # running
     "build_closed_loop": "maskless.diagrams.closed_loop",
     "simulate": "maskless.diagrams.simulation",
@@ -55,6 +57,8 @@ _EXPORTS = {
     "run_workflow": "maskless.diagrams.workflow",
     # recordings
     "read_recording": "maskless.recording",
+    "read_camera_frames": "maskless.recording",
+    "CameraFrame": "maskless.camera_images",
     # errors
     "MasklessError": "maskless.errors",
     "ConfigError": "maskless.errors",

@@ -23,6 +23,8 @@ def test_the_python_example_gives_the_metrics_of_maskless_simulate(tmp_path, mon
     # The sweep block wrote each head into the one loop it built.
     assert namespace["swept"].scenario is run.scenario
     assert (tmp_path / "out" / "run.mcap").is_file() and (tmp_path / "out" / "run.png").is_file()
+    # The rendered-cameras block found the face in its first frame and drew the frames.
+    assert namespace["first"].valid and (tmp_path / "out" / "frames.png").is_file()
     capsys.readouterr()
 
     scenario = run.scenario

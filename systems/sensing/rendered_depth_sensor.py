@@ -209,9 +209,10 @@ FrameSink = Callable[[str, float, np.ndarray, FaceMeasurement], None]
 class FrameRecorder(LeafSystem):
     """Hands every ``decimation``-th frame of a camera, with what was found in it, to ``sink``.
 
-    A publish event (a side effect only), at frame ticks, so it reads the very render and the very
-    measurement the sensor's update takes at that tick. It starts at the second frame: at the
-    first, the seed's RandomSource draws (as every RandomSource does at t = 0) between the
+    A publish event (a side effect only) at the sensor's own frame ticks (the same period and
+    offset, so the same instants to the last bit), so it reads the very render and the very
+    measurement the sensor's update takes at that tick. Recording starts at the second frame: at
+    the first, the seed's RandomSource draws (as every RandomSource does at t = 0) between the
     publish and the update, so the two would see different noise.
 
     .. pydrake_system::
@@ -239,9 +240,14 @@ class FrameRecorder(LeafSystem):
         self._measurement = self.DeclareAbstractInputPort(
             "measurement", AbstractValue.Make(invalid_measurement("no frame yet"))
         )
-        self.DeclarePeriodicPublishEvent(period_s * decimation, period_s, self._record)
+        self._period_s = period_s
+        self._decimation = decimation
+        self.DeclarePeriodicPublishEvent(period_s, 0.0, self._record)
 
     def _record(self, context) -> None:
+        frame_index = round(context.get_time() / self._period_s)
+        if frame_index < 1 or (frame_index - 1) % self._decimation:
+            return
         measurement = self._measurement.Eval(context)
         rgb = self._color.Eval(context).data[:, :, :3].copy()
         self._sink(self._camera, context.get_time(), rgb, measurement)

@@ -83,9 +83,9 @@ class SimulationRun:
     def first_and_last_frames(self) -> dict[str, list[CameraFrame]]:
         """Each rendered camera's first and last recorded frame (what frames.png shows)."""
         by_camera: dict[str, list[CameraFrame]] = {}
-        for frame in self.frames:
+        for frame in first_and_last_frames(self.frames):
             by_camera.setdefault(frame.camera, []).append(frame)
-        return {camera: [frames[0], frames[-1]] for camera, frames in by_camera.items()}
+        return by_camera
 
     def plot_frames(self, path: str | Path) -> Path:
         """Draws each rendered camera's first and last frame with its boxes to ``path`` (PNG)."""
@@ -134,6 +134,7 @@ def simulate(
     progress: Callable[[float, float], None] | None = None,
     on_chunk: Callable[[dict[str, Signal], list[CameraFrame]], None] | None = None,
     nominal=None,
+    keep_all_frames: bool = True,
 ) -> SimulationRun:
     """Builds and simulates ``scenario``'s closed loop.
 
@@ -147,9 +148,18 @@ def simulate(
             since the previous call (a recording can be written while the loop runs).
         nominal: ``closed_loop.NominalPneumatic.of(scenario)`` when the caller has it already (a
             Monte Carlo over head masses shares one).
+        keep_all_frames: keep every recorded camera frame in the run; False keeps each camera's
+            first and last (a caller that streams them with ``on_chunk`` needs no more, and an
+            hour's frames would take gigabytes).
     """
     closed_loop = build_closed_loop(scenario, record=record, nominal=nominal)
-    return simulate_loop(closed_loop, scenario, progress=progress, on_chunk=on_chunk)
+    return simulate_loop(
+        closed_loop,
+        scenario,
+        progress=progress,
+        on_chunk=on_chunk,
+        keep_all_frames=keep_all_frames,
+    )
 
 
 def simulate_loop(
@@ -159,6 +169,7 @@ def simulate_loop(
     progress: Callable[[float, float], None] | None = None,
     on_chunk: Callable[[dict[str, Signal], list[CameraFrame]], None] | None = None,
     plant_parameters: PneumaticParameters | None = None,
+    keep_all_frames: bool = True,
 ) -> SimulationRun:
     """Simulates a built loop and collects its logs (see ``simulate`` for the callbacks).
 
@@ -185,7 +196,9 @@ def simulate_loop(
             progress(context.get_time(), scenario.duration_s)
         if on_chunk is not None:
             on_chunk(logged_signals(closed_loop, context, taken), frames[frames_taken:])
-            frames_taken = len(frames)
+        if not keep_all_frames:
+            frames[:] = first_and_last_frames(frames)
+        frames_taken = len(frames)
     wall_time_s = time.perf_counter() - start
     return SimulationRun(
         scenario, closed_loop, logged_signals(closed_loop, context), wall_time_s, list(frames)
@@ -225,6 +238,7 @@ def simulate_to_files(scenario: Scenario, out: str | Path) -> dict:
         on_chunk=lambda signals, frames: recorder.send(
             (signal_channels(signals, camera_names), frames)
         ),
+        keep_all_frames=False,
     )
     plotter.send((plot_closed_loop, (png_path,), run.plot_arguments()))
     files = {"recording": str(mcap_path), "plot": str(png_path)}
@@ -237,6 +251,17 @@ def simulate_to_files(scenario: Scenario, out: str | Path) -> dict:
     plotter.wait()
     summary["files"] = files
     return summary
+
+
+def first_and_last_frames(frames: list[CameraFrame]) -> list[CameraFrame]:
+    """Each camera's first and last frame of ``frames`` (once if it has one), in time order."""
+    first: dict[str, CameraFrame] = {}
+    last: dict[str, CameraFrame] = {}
+    for frame in frames:
+        first.setdefault(frame.camera, frame)
+        last[frame.camera] = frame
+    kept = {id(frame): frame for frame in [*first.values(), *last.values()]}
+    return sorted(kept.values(), key=lambda frame: frame.time_s)
 
 
 def rendered_camera_names(scenario: Scenario) -> list[str]:

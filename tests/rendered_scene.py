@@ -28,13 +28,13 @@ class RenderedScene:
     cameras: dict  # name -> (config, RgbdSensor)
 
     def render(self, name: str, head_height_m: float):
-        """(rgb, depth) of camera ``name`` with the head at ``head_height_m``."""
+        """(rgba, depth) of camera ``name`` with the head at ``head_height_m``."""
         self.diagram.get_input_port(0).FixValue(self.context, [head_height_m])
         config, sensor = self.cameras[name]
         context = sensor.GetMyContextFromRoot(self.context)
-        rgb = sensor.color_image_output_port().Eval(context).data[:, :, :3].copy()
+        rgba = sensor.color_image_output_port().Eval(context).data.copy()
         depth = sensor.depth_image_32F_output_port().Eval(context).data[:, :, 0].copy()
-        return rgb, depth
+        return rgba, depth
 
 
 def shipped_cameras(**rendering_changes):

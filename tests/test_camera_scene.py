@@ -28,10 +28,10 @@ def test_the_face_moves_with_the_head_height_port(scene, name):
 
 def test_the_image_has_the_camera_resolution_and_colour_the_scaled_one(scene):
     for name, (config, _) in scene.cameras.items():
-        rgb, depth = scene.render(name, 0.21)
+        rgba, depth = scene.render(name, 0.21)
         rendering = config.rendering
         assert depth.shape == (rendering.image_height_px, rendering.image_width_px)
-        assert rgb.shape[:2] == (
+        assert rgba.shape[:2] == (
             round(rendering.image_height_px * rendering.color_scale),
             round(rendering.image_width_px * rendering.color_scale),
         )

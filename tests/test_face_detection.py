@@ -11,6 +11,7 @@ from maskless.systems.sensing.face_detection import (
     at_image_edge,
     depth_region,
     find_face_region,
+    map_box,
     region_distance_m,
     scale_box,
     with_distance,
@@ -41,7 +42,7 @@ def test_the_cascades_find_the_face_and_both_eyes_in_the_portrait(finder, portra
     assert left[0] < right[0]  # left to right
     for ex, ey, ew, eh in found.eye_boxes:  # eyes in the face's upper part
         assert x <= ex and ex + ew <= x + w and y <= ey and ey + eh <= y + 0.6 * h + 1
-    assert found.region_box == depth_region(found.face_box, found.eye_boxes)
+    assert found.region_box == depth_region(found.eye_boxes)
 
 
 def test_a_tracked_face_is_found_near_its_last_box_and_a_lost_one_everywhere(finder, portrait):
@@ -75,16 +76,42 @@ def test_a_face_cut_by_the_image_edge_gives_no_distance(finder, portrait):
     assert found.reason in ("face at the image edge", "no face")
 
 
+class _FaceAtTheEdge:
+    """A finder that reports a face touching the image's left edge, with both eyes."""
+
+    def find_face(self, gray, last_face):
+        return (1, 50, 60, 60)
+
+    def find_eyes(self, gray, face):
+        return ((10, 60, 12, 12), (35, 60, 12, 12))
+
+
+def test_a_face_box_at_the_image_edge_gives_no_distance():
+    found = find_face_region(_FaceAtTheEdge(), np.zeros((240, 320), np.uint8), None)
+    assert not found.valid and found.reason == "face at the image edge"
+    assert found.face_box == (1, 50, 60, 60)  # kept for the tracker
+
+
 def test_edge_margin():
     assert at_image_edge((0, 50, 20, 20), (240, 320))
     assert at_image_edge((300, 50, 19, 20), (240, 320))
     assert not at_image_edge((100, 100, 40, 40), (240, 320))
 
 
-def test_depth_region_is_the_eye_band_or_the_face_middle():
+def test_depth_region_is_the_band_spanning_both_eyes():
     eyes = ((10, 20, 8, 6), (30, 22, 10, 8))
-    assert depth_region((0, 0, 50, 60), eyes) == (10, 20, 30, 10)
-    assert depth_region((0, 0, 40, 60), ()) == (10, 15, 20, 30)
+    assert depth_region(eyes) == (10, 20, 30, 10)
+
+
+def test_a_face_without_both_eyes_gives_no_distance(finder, portrait):
+    face = finder.find_face(portrait, None)
+    x, y, w, h = face
+    masked = portrait.copy()
+    masked[y : y + h // 2, x + w // 2 : x + w] = 110  # paint out the right eye (and brow)
+    found = find_face_region(finder, masked, face)
+    assert len(found.eye_boxes) < 2
+    assert not found.valid and found.reason == "eyes not found"
+    assert found.face_box is not None  # kept, so the tracker keeps the face
 
 
 def test_region_distance_is_scipys_interquartile_mean_of_valid_pixels():
@@ -111,6 +138,10 @@ def test_a_found_region_without_valid_depth_is_invalid(finder, portrait):
     assert with_distance(found, 0.81).distance_m == 0.81
 
 
-def test_scale_box_rounds_to_whole_pixels():
-    assert scale_box((10, 11, 20, 21), 2.0) == (20, 22, 40, 42)
-    assert scale_box((3, 3, 5, 5), 0.5) == (2, 2, 2, 2)
+def test_scale_box_scales_corners_and_stays_in_the_image():
+    assert scale_box((10, 11, 20, 21), 2.0, (480, 640)) == (20, 22, 40, 42)
+    # Corners, not corner and size: (3, 3)-(8, 8) halves to (2, 2)-(4, 4).
+    assert scale_box((3, 3, 5, 5), 0.5, (480, 640)) == (2, 2, 2, 2)
+    # A box reaching past the image is cut at its edge.
+    assert scale_box((300, 230, 30, 20), 2.0, (480, 640)) == (600, 460, 40, 20)
+    assert map_box((10, 10, 10, 10), (2.0, 3.0), (480, 640)) == (20, 30, 20, 30)

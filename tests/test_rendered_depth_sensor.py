@@ -1,5 +1,6 @@
 """The rendered camera: Drake's RgbdSensor, face detection, a measurement on the model's ports."""
 
+import copy
 import math
 
 import numpy as np
@@ -11,14 +12,13 @@ from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 from rendered_scene import build_rendered_scene, head_travel_m, shipped_cameras
 
 from maskless.systems.sensing.camera_scene import add_camera_scene
-from maskless.systems.sensing.depth_image_noise import kinect_depth_image
-from maskless.systems.sensing.face_detection import (
-    FaceFinder,
-    find_face_region,
-    region_distance_m,
-    scale_box,
+from maskless.systems.sensing.depth_sensor import latency_frames
+from maskless.systems.sensing.face_detection import FaceFinder
+from maskless.systems.sensing.rendered_depth_sensor import (
+    add_rendered_depth_sensor,
+    camera_info,
+    measure_frame,
 )
-from maskless.systems.sensing.rendered_depth_sensor import add_rendered_depth_sensor, camera_info
 
 
 def quantisation_step_m(name, distance_m):
@@ -48,16 +48,22 @@ def scene():
 @pytest.mark.parametrize("name", ["kinect_v1", "kinect_v2"])
 def test_noise_free_region_depth_is_the_true_face_distance_within_one_step(scene, name, height_m):
     config, _ = scene.cameras[name]
-    rgb, depth = scene.render(name, height_m)
-    finder = FaceFinder()
-    found = find_face_region(finder, np.ascontiguousarray(rgb.mean(axis=2).astype(np.uint8)), None)
+    rgba, depth = scene.render(name, height_m)
+    found = measure_frame(FaceFinder(), config, rgba, depth, None, None, 0.0)
     assert found.valid, found.reason
     assert len(found.eye_boxes) == 2
-    x, y, w, h = scale_box(found.region_box, 1 / config.rendering.color_scale)
-    noise_free = kinect_depth_image(depth[y : y + h, x : x + w], config, 0.0, None)
     true_distance_m = config.mount_height_m - height_m
     step_m = quantisation_step_m(name, true_distance_m)
-    assert abs(region_distance_m(noise_free) - true_distance_m) <= step_m
+    assert abs(found.distance_m - true_distance_m) <= step_m
+
+
+def test_a_dropped_frame_is_no_measurement_and_searches_nothing(scene):
+    config = copy.deepcopy(scene.cameras["kinect_v2"][0])
+    config.dropout_probability = 0.999999
+    rgba, depth = scene.render("kinect_v2", 0.21)
+    dropped = measure_frame(FaceFinder(), config, rgba, depth, None, np.random.default_rng(0), 0.0)
+    assert not dropped.valid and dropped.reason == "frame dropped"
+    assert dropped.face_box is None and np.isnan(dropped.distance_m)
 
 
 def _run_sensor(cameras, height_m, duration_s, seed=0, frames=None, every=1):
@@ -133,3 +139,25 @@ def test_every_nth_frame_is_recorded_with_its_image_and_boxes():
             3,
         )
         assert measurement.valid and measurement.face_box is not None
+
+
+def test_a_longer_latency_holds_each_measurement_more_frames_as_the_model_sensor_does():
+    cameras = shipped_cameras()
+    camera = cameras["kinect_v2"]
+    camera.dropout_probability = 0.0
+    camera.latency_s = 3 / camera.frame_rate_hz
+    logs = _run_sensor({"kinect_v2": camera}, 0.21, 0.6)
+    # latency_frames = 3: the frame taken at t = 0 is on the port from 3 frames on.
+    assert latency_frames(camera) == 3
+    np.testing.assert_array_equal(logs["kinect_v2", "valid"][:4], [0, 0, 0, 1])
+
+
+def test_a_recorded_frame_is_the_measurement_its_filter_receives():
+    frames = []
+    cameras = shipped_cameras()
+    logs = _run_sensor(cameras, 0.21, 1.0, frames=frames, every=3)
+    for name, camera, time_s, _, measurement in ((f[0], cameras[f[0]], *f[1:]) for f in frames):
+        # The port shows a frame from the next tick on (one frame of latency).
+        index = round(time_s * camera.frame_rate_hz) + 1
+        assert logs[name, "valid"][index] == measurement.valid == 1
+        assert logs[name, "distance_m"][index] == measurement.distance_m

@@ -3,6 +3,7 @@
 import json
 
 import pytest
+from camera_frames import face_frame
 
 from maskless.diagrams.cli import main
 from maskless.diagrams.scenario import (
@@ -10,7 +11,7 @@ from maskless.diagrams.scenario import (
     load_scenario,
     plant_from_shorthand,
 )
-from maskless.diagrams.simulation import simulate
+from maskless.diagrams.simulation import first_and_last_frames, simulate
 from maskless.recording import read_camera_frames, read_recording, write_recording
 
 
@@ -135,3 +136,16 @@ def test_sensors_model_turns_a_rendered_config_back_to_the_formulas(tmp_path, ca
     assert main([*args, "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert list(read_camera_frames(tmp_path / "run.mcap")) == ["kinect_v1"]
+
+
+def test_a_streaming_run_keeps_each_cameras_first_and_last_frame():
+    frames = [face_frame(camera, t) for t in (0.1, 0.2, 0.3) for camera in ("a", "b")]
+    frames.append(face_frame("c", 0.25))
+    kept = first_and_last_frames(frames)
+    assert [(f.camera, f.time_s) for f in kept] == [
+        ("a", 0.1),
+        ("b", 0.1),
+        ("c", 0.25),
+        ("a", 0.3),
+        ("b", 0.3),
+    ]

@@ -72,7 +72,7 @@ def face_landmarks() -> tuple[tuple, list[tuple], tuple]:
     x, y, w, h = face
     centre = _to_metres(x + w / 2, y + h / 2, gray.shape)
     eye_centres = [_to_metres(ex + ew / 2, ey + eh / 2, gray.shape) for ex, ey, ew, eh in eyes]
-    bx, by, bw, bh = depth_region(face, eyes)
+    bx, by, bw, bh = depth_region(eyes)
     band = (_to_metres(bx, by + bh, gray.shape), _to_metres(bx + bw, by, gray.shape))
     return centre, eye_centres, band
 

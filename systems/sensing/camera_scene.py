@@ -3,8 +3,9 @@
 The head is a SceneGraph frame posed from the plant's ``head_height_m`` port, not a MultibodyPlant
 body: the plant's own model (pneumatic or identified) already says where the head is, and a
 MultibodyPlant would add a second dynamics solve whose only job would be to copy that height. The
-face is a flat textured quad (``assets/face``), face up at the head height, so the
-camera-to-face distance a depth camera should report is exactly ``mount_height_m - head_height_m``.
+face is a textured relief mesh (``assets/face``) whose zero is its eye band, face up at the head
+height, so the distance a depth camera should report in the eye band is
+``mount_height_m - head_height_m``.
 
 Rendering uses Drake's VTK engine through EGL, so it runs headless, with no X display, on a CPU.
 """

@@ -9,12 +9,12 @@ local filters, the fusion and the controller are the same for both fidelities.
 Timing is the measurement model's: a frame is rendered at each frame tick and its measurement
 reaches the filter at the filter's next tick, one frame later; a configured latency of more frames
 holds it longer. Randomness comes from a RandomSource (``{name}.seed``) that draws the camera's seed
-once, when the run's random context is set; each frame's noise is drawn from the stream numpy's
-SeedSequence makes of that seed and the frame's index. So a run seeded with
-``diagram.SetRandomContext`` is reproducible bit for bit, and the seed does not change within a
-run: the frame recorder, whose publish at a frame tick comes just before the tick's update, reads
-the very measurement the update takes (Drake's cache serves both), and each frame is rendered and
-searched once, recorded or not.
+at t = 0 (as every RandomSource draws at its first tick) and never again within a run; each
+frame's noise is drawn from the stream numpy's SeedSequence makes of that seed and the frame's
+index. So a run seeded with ``diagram.SetRandomContext`` is reproducible bit for bit, and after
+t = 0 the seed does not change: the frame recorder, whose publish at a frame tick comes just
+before the tick's update, reads the very measurement the update takes (Drake's cache serves both),
+and each frame is rendered and searched once, recorded or not.
 """
 
 import math
@@ -45,12 +45,13 @@ from maskless.systems.sensing.depth_sensor import (
     validate_sensor_config,
 )
 from maskless.systems.sensing.face_detection import (
+    Box,
     FaceFinder,
     FaceMeasurement,
     find_face_region,
     invalid_measurement,
+    map_box,
     region_distance_m,
-    scale_box,
     with_distance,
 )
 
@@ -58,11 +59,56 @@ from maskless.systems.sensing.face_detection import (
 CLIPPING_RANGE_M = (0.05, 10.0)
 # A uniform draw in [0, 1) becomes a 53-bit seed (a double's significand) for the camera's noise.
 _SEED_BITS = 53
-# The seed's RandomSource draws again only after this long (s): never, within any run.
+# The seed's RandomSource is a sampler like any other; with this period (s) it samples at t = 0
+# and never again within a run, so one seed serves a whole run.
 _SEED_HOLD_S = 1.0e12
 
-# Tracker state: the last face box (x, y, width, height) and whether there was one.
+# Tracker state: the last face box (x, y, width, height), then whether there was one.
 _TRACK_SIZE = 5
+_TRACK_FOUND = 4
+
+
+def frame_index(time_s: float, period_s: float) -> int:
+    """The index of the frame ticked at ``time_s`` (0 at t = 0)."""
+    return round(time_s / period_s)
+
+
+def measure_frame(
+    finder: FaceFinder,
+    config: DepthSensorConfig,
+    color_rgba: np.ndarray,
+    depth_m: np.ndarray,
+    last_face: Box | None,
+    rng: np.random.Generator | None,
+    time_s: float,
+) -> FaceMeasurement:
+    """One frame's measurement: dropout, face and eyes, then the eye band's noisy depth.
+
+    Args:
+        finder: the cascades.
+        config: the camera (dropout, noise, range).
+        color_rgba: the colour image, (rows, columns, 4) uint8, at ``rendering.color_scale``.
+        depth_m: the exact depth image (m), (rows, columns), at the camera's resolution.
+        last_face: where the face was in the last frame (colour pixels), or None.
+        rng: the frame's random stream; None for a perfect camera of this model (no dropped
+            frame, no noise, no lost pixel; still quantised and range-limited).
+        time_s: the frame's time (s), for the Kinect v2's warm-up drift.
+    """
+    if rng is not None and rng.random() < config.dropout_probability:
+        return invalid_measurement("frame dropped")
+    found = find_face_region(finder, cv2.cvtColor(color_rgba, cv2.COLOR_RGBA2GRAY), last_face)
+    if not found.valid:
+        return found
+    # The region in depth pixels, from the two images' actual sizes.
+    factors = (
+        depth_m.shape[1] / color_rgba.shape[1],
+        depth_m.shape[0] / color_rgba.shape[0],
+    )
+    x, y, w, h = map_box(found.region_box, factors, depth_m.shape)
+    # Only the region's pixels are read, so only they get the camera's noise, drawn as for a
+    # whole noisy image, for a fraction of the cost.
+    region = kinect_depth_image(depth_m[y : y + h, x : x + w], config, time_s, rng)
+    return with_distance(found, region_distance_m(region))
 
 
 def camera_info(config: DepthSensorConfig, scale: float = 1.0) -> CameraInfo:
@@ -158,25 +204,16 @@ class FaceDepthSensor(LeafSystem):
         self.DeclarePeriodicDiscreteUpdateEvent(self._period_s, 0.0, self._take_frame)
 
     def _calc_measurement(self, context, output) -> None:
-        config = self._config
+        time_s = context.get_time()
         seed = int(self._seed.Eval(context)[0] * 2**_SEED_BITS)
-        frame_index = round(context.get_time() / self._period_s)
-        rng = np.random.default_rng([seed, frame_index])
-        if rng.random() < config.dropout_probability:
-            output.set_value(invalid_measurement("frame dropped"))
-            return
+        rng = np.random.default_rng([seed, frame_index(time_s, self._period_s)])
         track = context.get_discrete_state(self._track).value()
-        last_face = tuple(int(v) for v in track[:4]) if track[4] > 0.5 else None
-        found = find_face_region(self._finder, _gray(self._color.Eval(context).data), last_face)
-        distance_m = float("nan")
-        if found.valid:
-            # Only the region's pixels are read, so only they get the camera's noise: the same
-            # draws per pixel as a whole noisy image would give them, for a fraction of the cost.
-            x, y, w, h = scale_box(found.region_box, 1.0 / config.rendering.color_scale)
-            exact = self._depth.Eval(context).data[y : y + h, x : x + w, 0]
-            region = kinect_depth_image(exact, config, context.get_time(), rng)
-            distance_m = region_distance_m(region)
-        output.set_value(with_distance(found, distance_m))
+        last_face = tuple(int(v) for v in track[:4]) if track[_TRACK_FOUND] > 0.5 else None
+        color = self._color.Eval(context).data
+        depth = self._depth.Eval(context).data[:, :, 0]
+        output.set_value(
+            measure_frame(self._finder, self._config, color, depth, last_face, rng, time_s)
+        )
 
     def _take_frame(self, context, discrete_state) -> None:
         measurement: FaceMeasurement = self._measurement.Eval(context)
@@ -184,7 +221,7 @@ class FaceDepthSensor(LeafSystem):
         if measurement.face_box is not None:
             track.SetFromVector([*measurement.face_box, 1.0])
         elif measurement.reason != "frame dropped":
-            track.SetAtIndex(4, 0.0)  # lost: search the whole image next frame
+            track.SetAtIndex(_TRACK_FOUND, 0.0)  # lost: search the whole image next frame
         pipeline = context.get_discrete_state(self._pipeline).value()
         distance = measurement.distance_m if measurement.valid else 0.0
         discrete_state.get_mutable_vector(self._pipeline).SetFromVector(
@@ -196,11 +233,6 @@ class FaceDepthSensor(LeafSystem):
 
     def _calc_valid(self, context, output) -> None:
         output.SetAtIndex(0, context.get_discrete_state(self._pipeline).value()[-1])
-
-
-def _gray(color: np.ndarray) -> np.ndarray:
-    """The grey image of an RGBA image, as the cascades take it."""
-    return cv2.cvtColor(color, cv2.COLOR_RGBA2GRAY)
 
 
 FrameSink = Callable[[str, float, np.ndarray, FaceMeasurement], None]
@@ -245,8 +277,8 @@ class FrameRecorder(LeafSystem):
         self.DeclarePeriodicPublishEvent(period_s, 0.0, self._record)
 
     def _record(self, context) -> None:
-        frame_index = round(context.get_time() / self._period_s)
-        if frame_index < 1 or (frame_index - 1) % self._decimation:
+        index = frame_index(context.get_time(), self._period_s)
+        if index < 1 or (index - 1) % self._decimation:
             return
         measurement = self._measurement.Eval(context)
         rgb = self._color.Eval(context).data[:, :, :3].copy()

@@ -268,7 +268,7 @@ def loop(duration_s: float) -> dict:
 
 
 def window_errors_mm(run) -> np.ndarray:
-    """head - reference (mm) from 20 s after the step to the end."""
+    """The tracking error, head minus reference (mm), from 20 s after the step to the end."""
     head = run.signals["head_height_m"]
     reference = run.signals["reference_head_height_m"].values[0]
     window = head.times_s >= STEP_TIME_S + WINDOW_AFTER_STEP_S

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGE_FOLDERS = ("systems", "analysis", "diagrams", "assets")
+PACKAGE_FOLDERS = ("recording", "systems", "analysis", "diagrams", "assets")
 
 # Module-name prefix -> layer; the longest matching prefix decides.
 LAYERS = {

@@ -1,0 +1,108 @@
+"""Write and read the MCAP recordings of a closed-loop simulation.
+
+Every topic of the loop's signals carries JSON messages (``message_encoding`` ``"json"``) described
+by a ``"jsonschema"`` schema. ``log_time`` and ``publish_time`` are *simulated* time in integer
+nanoseconds, not wall clock, so a recording of the same simulation is byte-for-byte reproducible.
+
+A recording may also carry camera frames (``maskless.camera_images``): per camera, Foxglove's
+``CompressedImage`` on ``/cameras/NAME/image`` and ``ImageAnnotations`` on
+``/cameras/NAME/annotations``, protobuf messages (``message_encoding`` ``"protobuf"``) whose schemas
+are the FileDescriptorSets Foxglove ships. They are merged with the JSON messages by log time, a
+frame after the JSON messages of its time. ``read_recording`` passes over them;
+``read_camera_frames`` reads them.
+
+The writer takes whole columns (the arrays a Drake ``VectorLogSink`` hands back) rather than single
+messages, because converting column-wise with ``ndarray.tolist()`` is far cheaper than touching
+numpy scalars once per message.
+
+Files are written *unchunked*: each message is a record of its own on disk. That costs a little
+space, but a file whose writer died (or that was cut at any byte) can be read back up to its last
+complete message, which a chunked file cannot promise (a whole chunk would be lost).
+
+Topics and fields (format version 2). A field is named after the Drake output port its values come
+from (``diagrams.closed_loop.export_and_log``), so a signal has one name from the diagram to the
+file:
+
+=================================  =============================================================
+topic                              fields
+=================================  =============================================================
+``/reference``                     ``reference_head_height_m``
+``/plant/head_height``             ``head_height_m``
+``/sensors/NAME/measurement``      ``distance_m``, ``valid``
+``/filters/NAME/estimate``         ``head_height_m``, ``head_velocity_m_s``, ``covariance``
+``/fusion/estimate``               ``head_height_m``, ``head_velocity_m_s``, ``covariance``
+``/controller/command``            ``inlet_valve_current_a``, ``outlet_valve_current_a``
+=================================  =============================================================
+
+An estimate comes from the ports ``estimated_state`` ([height, velocity]) and ``covariance``. Its
+covariance keeps the port's name; the state is split into its two components, named after what
+they estimate: the first is the plant's ``head_height_m`` (so truth and estimate compare field for
+field), the second its rate, ``head_velocity_m_s``. Two scalar fields, unlike one 2-vector, can each
+be read as ``TOPIC:FIELD`` (``maskless identify``) and plotted by name in an MCAP viewer.
+
+Versions. Every schema's name carries the format version, ``maskless.Reference.v2``: the schema name
+is what MCAP tools list for a channel, and a schema is written before its channel's first message,
+so even a cut-off file says how to read every message it holds (a file-wide Metadata record would
+say nothing per channel, and a streaming reader would have to meet it first). Version 1 (schema
+names without a version, every file written before versions existed) named the fields differently:
+``reference_m``, the topic ``/plant/head_position`` with ``head_position_m``, estimates'
+``position_m`` and ``velocity_m_s``, and commands' ``current_a`` and ``outlet_current_a``.
+``read_recording`` presents a version-1 file under the current names (``format._V1_TOPICS``
+and ``format._V1_FIELDS`` are the one table of what changed), and refuses a version it does not
+know.
+
+The package's modules: ``format`` (topics, schemas, the format version, version 1's names),
+``encoding`` (channels and frames validated and encoded as message bytes, merged by log time),
+``writing`` (the file, at once or batch by batch) and ``reading`` (the file read back, cut or
+whole). The names below are theirs, re-exported.
+"""
+
+from maskless.recording.encoding import Channel
+from maskless.recording.format import (
+    CAMERA_MESSAGE_ENCODING,
+    COMMAND_TOPIC,
+    FUSION_TOPIC,
+    HEAD_HEIGHT_TOPIC,
+    MESSAGE_ENCODING,
+    REFERENCE_TOPIC,
+    SCHEMA_ENCODING,
+    SCHEMA_VERSION,
+    current_name,
+    filter_estimate_topic,
+    schema_for_topic,
+    sensor_measurement_topic,
+)
+from maskless.recording.reading import (
+    Recording,
+    TruncatedRecordingWarning,
+    read_camera_frames,
+    read_recording,
+)
+from maskless.recording.writing import RecordingWriter as RecordingWriter
+from maskless.recording.writing import write_recording
+from maskless.recording.writing import write_recording_batches as write_recording_batches
+from maskless.sensor_names import is_sensor_name as is_sensor_name
+
+# The module's __all__ from before it became a package. The batch writer, its worker and the
+# sensor-name check (imported from here by diagrams.scenario) are public too, but outside __all__
+# as they were: each is imported "as" itself, which marks it as re-exported.
+__all__ = [
+    "CAMERA_MESSAGE_ENCODING",
+    "COMMAND_TOPIC",
+    "FUSION_TOPIC",
+    "HEAD_HEIGHT_TOPIC",
+    "MESSAGE_ENCODING",
+    "REFERENCE_TOPIC",
+    "SCHEMA_ENCODING",
+    "SCHEMA_VERSION",
+    "Channel",
+    "Recording",
+    "TruncatedRecordingWarning",
+    "current_name",
+    "filter_estimate_topic",
+    "read_camera_frames",
+    "read_recording",
+    "schema_for_topic",
+    "sensor_measurement_topic",
+    "write_recording",
+]

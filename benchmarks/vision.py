@@ -141,19 +141,26 @@ def detection(scenario, duration_s: float = 60.0) -> dict:
     )
     measured, ports, wall_s = run_cameras(scenario, heights, duration_s)
     result = {"duration_s": duration_s, "wall_s": wall_s}
-    for name in scenario.cameras:
-        frames = [m for camera, _, m in measured if camera == name]
-        taken = [m for m in frames if m.reason != "frame dropped"]
+    for name, camera in scenario.cameras.items():
+        frames = [(t, m) for camera_name, t, m in measured if camera_name == name]
+        taken = [m for _, m in frames if m.reason != "frame dropped"]
         faces = sum(m.face_box is not None for m in taken)
-        numbers_without_face = sum(m.face_box is None and m.valid for m in frames)
+        # A face found in the wrong place would read a wrong distance: every number against truth.
+        errors = [
+            m.distance_m - (camera.mount_height_m - heights.value(t)[0, 0])
+            for t, m in frames
+            if m.valid
+        ]
         distance, valid = ports[name]
         result[name] = {
             "frames": len(frames),
             "dropped_frames": len(frames) - len(taken),
             "face_found_fraction": faces / len(taken),
-            "valid_fraction": sum(m.valid for m in frames) / len(frames),
-            "numbers_from_missed_faces": numbers_without_face,
+            "both_eyes_found_fraction": sum(len(m.eye_boxes) == 2 for m in taken) / len(taken),
+            "valid_fraction": sum(m.valid for _, m in frames) / len(frames),
+            "numbers_from_missed_faces": sum(m.face_box is None and m.valid for _, m in frames),
             "port_numbers_while_invalid": int(np.count_nonzero(distance[valid < 0.5])),
+            "max_abs_error_mm": float(m_to_mm(np.max(np.abs(errors)))),
         }
     return result
 

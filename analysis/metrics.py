@@ -9,11 +9,18 @@ import numpy as np
 class TrackingMetrics:
     """How well the head followed its reference after the last reference step.
 
+    Errors are judged over a fixed window, from ``evaluation_delay_s`` after the last step to the
+    end, whether or not the head settled: a metric must not depend on what it judges.
+
     Attributes:
-        settled: whether the head entered the tolerance band and stayed there to the end.
-        settle_time_s: time from the last step to entering the band for good (None if never).
-        evaluation_start_s: errors below are measured from here to the end (s).
-        rms_error_m, p95_abs_error_m, max_abs_error_m: |head - reference| over that window (m).
+        settled: whether the head was inside the tolerance band at the end.
+        settle_time_s: from the last step to the last time the head came back inside the band
+            (None if it ends outside).
+        window_start_s, window_end_s: the window the figures below are taken over (s).
+        rms_error_m, p95_abs_error_m, max_abs_error_m: |head - reference| over the window (m);
+            None when the run ends before the window starts.
+        time_within_tolerance_fraction: the fraction of the window's time the head was within
+            the band, when a beam could be on (samples are evenly spaced); None as above.
         overshoot_m: largest excursion past the final reference in the step's direction (m); 0 for
             none, None when the reference never steps.
         final_error_m: head - reference at the last sample (m).
@@ -21,10 +28,12 @@ class TrackingMetrics:
 
     settled: bool
     settle_time_s: float | None
-    evaluation_start_s: float
-    rms_error_m: float
-    p95_abs_error_m: float
-    max_abs_error_m: float
+    window_start_s: float
+    window_end_s: float
+    rms_error_m: float | None
+    p95_abs_error_m: float | None
+    max_abs_error_m: float | None
+    time_within_tolerance_fraction: float | None
     overshoot_m: float | None
     final_error_m: float
 
@@ -36,18 +45,17 @@ def tracking_metrics(
     *,
     last_step_time_s: float,
     tolerance_m: float,
-    unsettled_evaluation_delay_s: float,
+    evaluation_delay_s: float,
 ) -> TrackingMetrics:
-    """Settling, error statistics and overshoot after the last reference step.
+    """Settling, error statistics over a fixed window, and overshoot after the last step.
 
     Args:
-        times_s: sample times (s), increasing.
+        times_s: sample times (s), increasing and evenly spaced.
         head_m: true head height at those times (m).
         reference_m: reference at those times (m).
         last_step_time_s: when the reference last changed (0 if it never did).
-        tolerance_m: the settling band (m).
-        unsettled_evaluation_delay_s: if the head never settles, errors are measured from this long
-            after the last step (or from the step, when the run ends sooner).
+        tolerance_m: the clinical band (m).
+        evaluation_delay_s: the window starts this long after the last step (s).
     """
     times_s, head_m, reference_m = (np.asarray(a, float) for a in (times_s, head_m, reference_m))
     if not len(times_s) == len(head_m) == len(reference_m) or len(times_s) == 0:
@@ -63,23 +71,29 @@ def tracking_metrics(
             f"(samples end at {times_s[-1]} s)"
         )
     after_indices = np.flatnonzero(after)
-    # "not inside" rather than "outside": a NaN error must not count as settled.
-    outside = ~(np.abs(error[after_indices]) <= tolerance_m)
-    settled = not outside[-1]
+    # "not inside" rather than "outside": a NaN error must not count as inside.
+    inside = np.abs(error) <= tolerance_m
+    outside_after = ~inside[after_indices]
+    settled = not outside_after[-1]
+    settle_time_s = None
     if settled:
-        last_outside = np.flatnonzero(outside)
-        first_inside = (
-            after_indices[last_outside[-1] + 1] if last_outside.size else after_indices[0]
+        last_outside = np.flatnonzero(outside_after)
+        back_inside = after_indices[last_outside[-1] + 1] if last_outside.size else after_indices[0]
+        settle_time_s = float(times_s[back_inside]) - last_step_time_s
+
+    window_start_s = last_step_time_s + evaluation_delay_s
+    in_window = times_s >= window_start_s
+    window = np.abs(error[in_window])
+    figures = (
+        (
+            float(np.sqrt(np.mean(window**2))),
+            float(np.percentile(window, 95)),
+            float(window.max()),
+            float(np.mean(inside[in_window])),
         )
-        evaluation_start_s = float(times_s[first_inside])
-        settle_time_s = evaluation_start_s - last_step_time_s
-    else:
-        settle_time_s = None
-        evaluation_start_s = last_step_time_s + unsettled_evaluation_delay_s
-        if evaluation_start_s > times_s[-1]:
-            # A run too short for the delay: judge everything after the step.
-            evaluation_start_s = last_step_time_s
-    window = np.abs(error[times_s >= evaluation_start_s])
+        if window.size
+        else (None, None, None, None)
+    )
 
     overshoot_m = None
     before = times_s < last_step_time_s
@@ -91,10 +105,12 @@ def tracking_metrics(
     return TrackingMetrics(
         settled=bool(settled),
         settle_time_s=settle_time_s,
-        evaluation_start_s=evaluation_start_s,
-        rms_error_m=float(np.sqrt(np.mean(window**2))),
-        p95_abs_error_m=float(np.percentile(window, 95)),
-        max_abs_error_m=float(window.max()),
+        window_start_s=window_start_s,
+        window_end_s=float(times_s[-1]),
+        rms_error_m=figures[0],
+        p95_abs_error_m=figures[1],
+        max_abs_error_m=figures[2],
+        time_within_tolerance_fraction=figures[3],
         overshoot_m=overshoot_m,
         final_error_m=float(error[-1]),
     )

@@ -192,15 +192,15 @@ class MetricsConfig:
     """How tracking is judged.
 
     Attributes:
-        tolerance_m: the band the head must settle into and stay in (m).
-        unsettled_evaluation_delay_s: when the head never settles, errors are measured from this
-            long after the last reference step (s).
+        tolerance_m: the clinical band (m).
+        evaluation_delay_s: tracking is judged from this long after the last reference step to
+            the end (s), settled or not.
         estimation_start_s: estimation errors are measured from here on (s), once the filters
             have forgotten their initial guess.
     """
 
     tolerance_m: float = UNSET
-    unsettled_evaluation_delay_s: float = UNSET
+    evaluation_delay_s: float = UNSET
     estimation_start_s: float = UNSET
 
 
@@ -364,7 +364,7 @@ def validate_scenario(config: Scenario) -> None:
         require(value > 0, f"local_filter.{field_name}", value, "a positive std")
     metrics = config.metrics
     require(metrics.tolerance_m > 0, "metrics.tolerance_m", metrics.tolerance_m, "> 0")
-    for field_name in ("unsettled_evaluation_delay_s", "estimation_start_s"):
+    for field_name in ("evaluation_delay_s", "estimation_start_s"):
         value = getattr(metrics, field_name)
         require(value >= 0, f"metrics.{field_name}", value, ">= 0")
     validate_paper_parameters(config.paper)

@@ -33,6 +33,8 @@ def _short_run(plant: str, controller: str):
     config.controller = controller_from_shorthand(controller)
     config.duration_s = SHORT_RUN_S
     config.reference.step_times_s = [2.0]
+    # Judged from 10 s after the step: the short run's last 8 s.
+    config.metrics.evaluation_delay_s = 10.0
     return simulate(config)
 
 

@@ -21,7 +21,7 @@ def test_first_order_step_settles_at_the_closed_form_time():
         reference,
         last_step_time_s=t_step,
         tolerance_m=TOL,
-        unsettled_evaluation_delay_s=30,
+        evaluation_delay_s=30,
     )
     # |e| = step exp(-t/tau) <= tol  <=>  t >= tau ln(step/tol)
     assert m.settled
@@ -42,7 +42,7 @@ def test_underdamped_step_overshoot_is_the_closed_form_peak():
         np.concatenate([[0.0], np.full(t.size, step)]),
         last_step_time_s=0.0,
         tolerance_m=TOL,
-        unsettled_evaluation_delay_s=30,
+        evaluation_delay_s=30,
     )
     expected = step * math.exp(-zeta * math.pi / math.sqrt(1 - zeta**2))
     assert m.overshoot_m == pytest.approx(expected, rel=1e-4)
@@ -57,12 +57,13 @@ def test_a_head_that_never_moves_is_reported_unsettled():
         reference,
         last_step_time_s=10.0,
         tolerance_m=TOL,
-        unsettled_evaluation_delay_s=30,
+        evaluation_delay_s=30,
     )
     assert not m.settled and m.settle_time_s is None
-    assert m.evaluation_start_s == 40.0
+    assert m.window_start_s == 40.0
     assert m.rms_error_m == pytest.approx(0.005)
     assert m.p95_abs_error_m == pytest.approx(0.005)
+    assert m.time_within_tolerance_fraction == 0.0
 
 
 def test_estimate_error_std_ignores_bias():
@@ -82,7 +83,7 @@ def test_bad_lengths_raise():
             np.zeros(3),
             last_step_time_s=0,
             tolerance_m=TOL,
-            unsettled_evaluation_delay_s=1,
+            evaluation_delay_s=1,
         )
 
 
@@ -95,6 +96,54 @@ def test_a_nan_head_is_never_settled():
         np.zeros_like(t),
         last_step_time_s=0.0,
         tolerance_m=TOL,
-        unsettled_evaluation_delay_s=1.0,
+        evaluation_delay_s=1.0,
     )
+    assert not m.settled
+
+
+def test_the_window_is_fixed_whether_or_not_the_head_settles():
+    # A head that wanders outside the band late, then comes back: the window still starts 20 s
+    # after the step (not where it last came back), so the excursion counts.
+    t = np.arange(0, 60, 0.01)
+    reference = np.where(t >= 10, 0.005, 0.0)
+    head = reference.copy()
+    excursion = (t >= 40) & (t < 45)  # 5 s of the 30 s window at 2 mm off
+    head[excursion] += 0.002
+    m = tracking_metrics(
+        t, head, reference, last_step_time_s=10.0, tolerance_m=TOL, evaluation_delay_s=20.0
+    )
+    assert m.settled and m.settle_time_s == pytest.approx(35.0)
+    assert m.window_start_s == 30.0 and m.window_end_s == pytest.approx(59.99)
+    assert m.time_within_tolerance_fraction == pytest.approx(25 / 30, abs=1e-3)
+    assert m.max_abs_error_m == pytest.approx(0.002)
+    # p95 of a window 1/6 of whose samples are 2 mm off: 2 mm.
+    assert m.p95_abs_error_m == pytest.approx(0.002)
+
+
+def test_time_within_tolerance_of_a_sine_is_the_closed_form():
+    # |a sin| <= tol for a fraction (2/pi) asin(tol/a) of the time.
+    a = 0.002
+    t = np.arange(0, 100, 0.001)
+    head = a * np.sin(2 * np.pi * 0.25 * t)
+    m = tracking_metrics(
+        t, head, np.zeros_like(t), last_step_time_s=0.0, tolerance_m=TOL, evaluation_delay_s=0.0
+    )
+    expected = 2 / np.pi * np.arcsin(TOL / a)
+    assert m.time_within_tolerance_fraction == pytest.approx(expected, abs=1e-3)
+    assert m.rms_error_m == pytest.approx(a / np.sqrt(2), rel=1e-3)
+
+
+def test_a_run_that_ends_before_the_window_has_no_figures_rather_than_one_sample():
+    t = np.arange(0, 30.001, 0.1)
+    reference = np.where(t >= 10, 0.005, 0.0)
+    m = tracking_metrics(
+        t,
+        np.zeros_like(t),
+        reference,
+        last_step_time_s=10.0,
+        tolerance_m=TOL,
+        evaluation_delay_s=30.0,
+    )
+    assert m.window_start_s == 40.0 and m.window_end_s == pytest.approx(30.0)
+    assert m.p95_abs_error_m is None and m.time_within_tolerance_fraction is None
     assert not m.settled

@@ -51,4 +51,6 @@ def test_offset_free_lqg_settles_the_default_step_within_the_clinical_bar(short_
     assert tracking["settle_time_s"] - 2.0 <= 10.0
     assert tracking["overshoot_mm"] <= 1.0
     assert tracking["p95_abs_error_mm"] <= 1.0
+    assert tracking["window_s"] == [12.0, pytest.approx(20.0)]
+    assert tracking["time_within_tolerance_fraction"] == 1.0
     assert tracking["head_travel_mm"] == pytest.approx(5.0, abs=1.0)

@@ -154,8 +154,7 @@ def tracking_lines(t: dict) -> list[str]:
     )
     if t["p95_abs_error_mm"] is None:
         window = [
-            f"no tracking window: it starts at t = {start_s:g} s ({band:g} mm band judged from "
-            f"there), and the run ends at {end_s:g} s"
+            f"no tracking window: it starts at t = {start_s:g} s, after the run ends at {end_s:g} s"
         ]
     else:
         window = [

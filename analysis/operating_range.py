@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from maskless.systems.plant.pneumatic_design import linearize_pneumatic_plant
+from maskless.systems.plant.pneumatic_design import VALVE_STATES, linearize_pneumatic_plant
 from maskless.systems.plant.pneumatic_physics import GAUGE_PRESSURE, LIFT, PneumaticParameters
-from maskless.systems.plant.pneumatic_plant import equilibrium_state
+from maskless.systems.plant.pneumatic_plant import beyond_travel, equilibrium_state
 
 VALVES = ("inlet", "outlet")
 
@@ -31,9 +31,10 @@ class OperatingRange:
         lift_m: steady lift of the head at each current (m) (N,).
         gauge_pressure_pa: steady bladder gauge pressure (Pa) (N,).
         dc_gain_m_per_a: steady lift per unit coil current of the linearised plant, -C A⁻¹ B
-            (m/A, the same number in mm/mA) (N,).
+            (m/A, the same number in mm/mA) (N,); NaN where the head is at or past a travel limit.
         time_constants_s: time constants -1/Re(λ) of the linearised plant's modes (a complex
-            pair counted once), slowest first, one row per current (N, modes).
+            pair counted once, the row padded with NaN), slowest first, one row per current
+            (N, states); NaN where the head is at or past a travel limit.
     """
 
     valve: str
@@ -116,14 +117,22 @@ def operating_range(
     if currents.ndim != 1 or currents.size == 0 or not np.all(np.diff(currents) > 0):
         raise ValueError(f"currents_a = {currents}: expected increasing coil currents (A)")
     lifts, pressures, gains, time_constants = [], [], [], []
+    modes = len(VALVE_STATES[valve])
     for current in currents:
         inlet, outlet = (current, held_current_a) if valve == "inlet" else (held_current_a, current)
         state = equilibrium_state(p, inlet, outlet)
-        A, B, C = linearize_pneumatic_plant(p, inlet, outlet, valve)
         lifts.append(state[LIFT])
         pressures.append(state[GAUGE_PRESSURE])
+        if beyond_travel(p, state):
+            # Held by a travel limit (a well-sealed bladder filling towards the supply): no gain.
+            gains.append(np.nan)
+            time_constants.append(np.full(modes, np.nan))
+            continue
+        A, B, C = linearize_pneumatic_plant(p, inlet, outlet, valve)
         gains.append(float((-C @ np.linalg.solve(A, B))[0, 0]))
-        time_constants.append(mode_time_constants_s(A))
+        tau = mode_time_constants_s(A)
+        # A complex pair is one mode: rows are padded to one entry per state with NaN.
+        time_constants.append(np.concatenate([tau, np.full(modes - tau.size, np.nan)]))
     return OperatingRange(
         valve=valve,
         held_current_a=float(held_current_a),

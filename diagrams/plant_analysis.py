@@ -106,9 +106,10 @@ def operating_range_report(ranges: dict) -> dict:
                 "current_ma": a_to_ma(float(current)),
                 "lift_mm": m_to_mm(float(lift)),
                 "gauge_pressure_kpa": float(pressure) / 1000.0,
-                "dc_gain_mm_per_ma": float(gain),
+                # None where the head is at or past a travel limit (nothing to linearise).
+                "dc_gain_mm_per_ma": json_safe(gain),
                 "slow_time_constant_s": json_safe(taus[0]),
-                "time_constants_s": [json_safe(t) for t in taus],
+                "time_constants_s": [json_safe(t) for t in taus if t == t],  # NaN pads dropped
             }
             for current, lift, pressure, gain, taus in zip(
                 sweep.currents_a,
@@ -163,10 +164,13 @@ def format_operating_range(report: dict, head_mass_kg: float) -> str:
         lines.append("   current    lift   gauge    DC gain   slow tau")
         lines.append("      (mA)    (mm)   (kPa)    (mm/mA)        (s)")
         for row in _shown_rows(rows):
+            steady = f"    {row['current_ma']:6.1f}  {_tidy(row['lift_mm'], 2):6.2f}"
+            steady += f"  {_tidy(row['gauge_pressure_kpa'], 3):6.3f}"
+            if row["dc_gain_mm_per_ma"] is None:
+                lines.append(f"{steady}  at or past the travel limit")
+                continue
             lines.append(
-                f"    {row['current_ma']:6.1f}  {_tidy(row['lift_mm'], 2):6.2f}"
-                f"  {_tidy(row['gauge_pressure_kpa'], 3):6.3f}  {row['dc_gain_mm_per_ma']:+9.4f}"
-                f"  {row['slow_time_constant_s']:9.2f}"
+                f"{steady}  {row['dc_gain_mm_per_ma']:+9.4f}  {row['slow_time_constant_s']:9.2f}"
             )
         lines.append("")
     low, high = report["working_range_mm"]
@@ -375,14 +379,13 @@ def _checked_cases(scenario: Scenario, request: StabilityRequest, allocation):
     p = scenario.pneumatic
     for factor in factors:
         head = dataclasses.replace(p, head_mass_kg=factor * p.head_mass_kg)
-        try:
-            low, high = holdable_lift_range_m(head, allocation)
-        except ValueError:  # no steady state: the bladder cannot carry this head at all
+        low, high = holdable_lift_range_m(head, allocation)
+        if not low < high:  # pinned at a travel limit throughout: the bladder cannot carry it
             raise ConfigError(
                 f"{request.label('mass_factors')} {request.mass_factors}: a "
                 f"{head.head_mass_kg:.2f} kg head (x{factor:g}) cannot be held anywhere in the "
                 "bladder's travel"
-            ) from None
+            )
         for lift in request.lifts_m:
             if not low <= lift <= high:
                 raise ConfigError(

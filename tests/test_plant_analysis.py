@@ -145,3 +145,27 @@ def test_missing_config_and_unknown_analysis_are_refused(tmp_path, capsys):
 def test_analyze_is_a_listed_command():
     help_text = build_parser(["--help"]).format_help()
     assert "analyze" in help_text
+
+
+@pytest.mark.parametrize("leak_factor", [0.01, 0.1, 10.0])
+def test_a_sealed_or_a_leaky_bladder_is_analysed_and_simulated_not_a_traceback(
+    tmp_path, capsys, leak_factor
+):
+    nominal = load_scenario().pneumatic.leak_sonic_conductance_m3_s_pa
+    config = tmp_path / "bladder.yaml"
+    config.write_text(f"pneumatic:\n  leak_sonic_conductance_m3_s_pa: {nominal * leak_factor:e}\n")
+    out = tmp_path / "out"
+    assert main(["analyze", "operating-range", "--config", str(config), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    report = json.loads(
+        (out / "operating_range.json").read_text(),
+        parse_constant=lambda name: pytest.fail(f"{name} in the report: not JSON"),
+    )
+    inlet = report["valves"]["inlet"]["rows"]
+    pinned = [row for row in inlet if row["dc_gain_mm_per_ma"] is None]
+    # A well-sealed bladder fills towards the supply and pushes the head past its travel; a
+    # leaky one never gets there.
+    assert bool(pinned) == (leak_factor < 1)
+    assert ("at or past the travel limit" in text) == (leak_factor < 1)
+    args = ["simulate", "--config", str(config), "--duration", "3", "--out", str(tmp_path / "s")]
+    assert main(args) == 0

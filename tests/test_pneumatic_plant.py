@@ -12,6 +12,7 @@ from system_harness import port_layout
 from maskless.errors import ConfigError
 from maskless.systems.plant.pneumatic_physics import (
     LIFT,
+    valve_opening,
 )
 from maskless.systems.plant.pneumatic_plant import (
     COMPILED_PARAMETER_NAMES,
@@ -20,6 +21,7 @@ from maskless.systems.plant.pneumatic_plant import (
     SWEPT_PARAMETERS,
     PneumaticPlant,
     add_pneumatic_plant,
+    beyond_travel,
     compiled_parameter_vector,
     equilibrium_state,
     load_pneumatic_parameters,
@@ -27,6 +29,7 @@ from maskless.systems.plant.pneumatic_plant import (
     parameters_from_vector,
     pneumatic_parameters,
     set_pneumatic_parameters,
+    steady_gauge_pressure_pa,
     validate_pneumatic_parameters,
 )
 
@@ -297,3 +300,34 @@ def test_a_bad_parameter_vector_names_what_was_expected(p):
         make_pneumatic_plant(
             p, equilibrium_state(p, 0.0, 0.0), 0.1, context_parameters=("simulation_step_s",)
         )
+
+
+def _with_leak(p, conductance):
+    return dataclasses.replace(p, leak_sonic_conductance_m3_s_pa=conductance)
+
+
+def test_a_sealed_bladder_with_the_inlet_open_fills_to_the_supply_and_pins_the_head(p):
+    sealed = _with_leak(p, 0.0)
+    inlet_open = valve_opening(p.inlet.saturation_current_a, p.inlet)
+    # No leak and the outlet shut: nothing balances the inlet short of the supply's pressure.
+    assert steady_gauge_pressure_pa(sealed, inlet_open, 0.0) == sealed.supply_gauge_pressure_pa
+    state = equilibrium_state(sealed, p.inlet.saturation_current_a, 0.0)
+    assert state[LIFT] == p.max_lift_m and beyond_travel(sealed, state)
+
+
+def test_a_sealed_bladder_with_both_valves_shut_holds_the_atmosphere(p):
+    assert steady_gauge_pressure_pa(_with_leak(p, 0.0), 0.0, 0.0) == 0.0
+
+
+def test_a_bladder_open_to_the_vacuum_drains_to_it_and_pins_the_head_low(p):
+    outlet_open = valve_opening(p.outlet.saturation_current_a, p.outlet)
+    sealed = _with_leak(p, 0.0)
+    vacuum_gauge = p.vacuum_absolute_pressure_pa - p.atmospheric_pressure_pa
+    assert steady_gauge_pressure_pa(sealed, 0.0, outlet_open) == vacuum_gauge
+    state = equilibrium_state(sealed, 0.0, p.outlet.saturation_current_a)
+    assert beyond_travel(sealed, state)
+
+
+def test_the_nominal_working_range_is_inside_the_travel(p):
+    for current in np.linspace(p.inlet.starting_current_a, p.inlet.saturation_current_a, 5):
+        assert not beyond_travel(p, equilibrium_state(p, current, 0.0))

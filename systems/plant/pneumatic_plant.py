@@ -192,25 +192,54 @@ def _check_size(what: str, values, names) -> None:
 
 
 def steady_gauge_pressure_pa(p: PneumaticParameters, inlet_opening, outlet_opening) -> float:
-    """The gauge pressure at which the bladder's air flows balance for two valve openings."""
+    """The gauge pressure at which the bladder's air flows balance for two valve openings.
+
+    Between the vacuum and the supply the net inflow falls as the pressure rises; where it does
+    not change sign there, the pressure ends at the end it pushes towards, and with no flow at
+    all (no leak, both valves shut), at the atmosphere's.
+    """
     low = p.vacuum_absolute_pressure_pa - p.atmospheric_pressure_pa
-    return brentq(
-        lambda gauge: net_mass_flow_kg_s(gauge, inlet_opening, outlet_opening, p),
-        low,
-        p.supply_gauge_pressure_pa,
-        xtol=1e-9,
-    )
+
+    def inflow(gauge):
+        return net_mass_flow_kg_s(gauge, inlet_opening, outlet_opening, p)
+
+    at_low, at_supply = inflow(low), inflow(p.supply_gauge_pressure_pa)
+    if at_low == at_supply == 0:
+        return 0.0  # sealed and shut: any pressure holds; at rest, the atmosphere's
+    if at_supply >= 0:
+        return p.supply_gauge_pressure_pa
+    if at_low <= 0:
+        return low
+    return brentq(inflow, low, p.supply_gauge_pressure_pa, xtol=1e-9)
 
 
 def steady_lift_m(p: PneumaticParameters, gauge_pressure: float) -> float:
-    """The lift at which the head rests for a bladder gauge pressure (travel limits included)."""
+    """The lift at which the head rests for a bladder gauge pressure (travel limits included).
+
+    A pressure that would push the head a whole travel beyond a limit (a well-sealed bladder
+    filling towards the supply pressure, or one drained to the vacuum) leaves it at that limit.
+    """
     span = p.max_lift_m - p.min_lift_m
-    return brentq(
-        lambda lift: head_force_n(gauge_pressure, lift, 0.0, p),
-        p.min_lift_m - span,
-        p.max_lift_m + span,
-        xtol=1e-12,
-    )
+    low, high = p.min_lift_m - span, p.max_lift_m + span
+
+    def force(lift):
+        return head_force_n(gauge_pressure, lift, 0.0, p)
+
+    if force(high) > 0:
+        return p.max_lift_m
+    if force(low) < 0:
+        return p.min_lift_m
+    return brentq(force, low, high, xtol=1e-12)
+
+
+def beyond_travel(p: PneumaticParameters, state) -> bool:
+    """Whether ``state`` puts the head at or past a travel limit (``min_lift_m``, ``max_lift_m``).
+
+    There the model's stop (a stiff spring, or the limit itself when ``steady_lift_m`` found no
+    rest within a travel of it) holds the head, not the bladder's balance: an operating point a
+    design or an analysis should not linearise about.
+    """
+    return not p.min_lift_m < state[LIFT] < p.max_lift_m
 
 
 def equilibrium_state(p: PneumaticParameters, inlet_current_a: float, outlet_current_a: float):

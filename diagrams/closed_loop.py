@@ -45,6 +45,7 @@ from maskless.systems.plant.linear_model_plant import (
     add_linear_model_plant,
     operating_head_height_m,
 )
+from maskless.systems.plant.patient_motion import add_patient_motion
 from maskless.systems.plant.pneumatic_physics import LIFT, PneumaticParameters
 from maskless.systems.plant.pneumatic_plant import (
     add_pneumatic_plant,
@@ -447,9 +448,13 @@ def assemble_loop(
     """
     builder.Connect(drive.inlet, plant.inlet)
     builder.Connect(drive.outlet, plant.outlet)
+    # The head's height: the bladder's lift plus the patient's own motion, when there is any.
+    head_height = add_patient_motion(
+        builder, config.patient_motion, plant.head_height, "patient_motion"
+    )
     frames: list[CameraFrame] = []
     sensing = add_sensing_chain(
-        builder, config, plant.head_height, plant.start_height_m, frames if record else None
+        builder, config, head_height, plant.start_height_m, frames if record else None
     )
     if drive.controller is not None:
         controller = drive.controller
@@ -463,7 +468,7 @@ def assemble_loop(
         sensing,
         {
             "reference_head_height_m": drive.reference,
-            "head_height_m": plant.head_height,
+            "head_height_m": head_height,
             "inlet_valve_current_a": drive.inlet,
             "outlet_valve_current_a": drive.outlet,
         },

@@ -34,6 +34,7 @@ from maskless.systems.paper_parameters import (
     load_paper_parameters,
     validate_paper_parameters,
 )
+from maskless.systems.plant.patient_motion import PatientMotionConfig, validate_patient_motion
 from maskless.systems.plant.pneumatic_physics import PneumaticParameters
 from maskless.systems.plant.pneumatic_plant import (
     load_pneumatic_parameters,
@@ -239,6 +240,7 @@ class Scenario:
             its own local Kalman filter, and the fusion fuses them all.
         start_lift_m: where the pneumatic plant's head starts, at rest (m of lift).
         camera_image_rate_hz: images per second each rendered camera adds to the recording.
+        patient_motion: the patient's own drift, shifts and breathing, added to the head height.
     """
 
     random_seed: int = 0
@@ -247,6 +249,7 @@ class Scenario:
     controller: Controller = field(default_factory=OffsetFreeLqg)
     start_lift_m: float = UNSET
     camera_image_rate_hz: float = UNSET
+    patient_motion: PatientMotionConfig = field(default_factory=PatientMotionConfig)
     reference: ReferenceConfig = field(default_factory=ReferenceConfig)
     cameras: dict[str, Camera] = field(default_factory=dict)
     local_filter: LocalFilterConfig = field(default_factory=LocalFilterConfig)
@@ -359,6 +362,7 @@ def validate_scenario(config: Scenario) -> None:
         config.camera_image_rate_hz,
         "a positive, finite rate",
     )
+    validate_patient_motion(config.patient_motion)
     for field_name in ("initial_position_std_m", "initial_velocity_std_m_s"):
         value = getattr(config.local_filter, field_name)
         require(value > 0, f"local_filter.{field_name}", value, "a positive std")
@@ -427,6 +431,7 @@ _LOOP_SYSTEM_NAMES = {
     "excitation",
     "scene_graph",
     "head_pose",
+    "patient_motion",
     "pneumatic_plant",
     "paper_plant",
     "identified_plant",

@@ -198,3 +198,16 @@ def test_the_default_loop_compiles_its_constants_and_says_so(config):
     heavier = dataclasses.replace(config.pneumatic, head_mass_kg=6.0)
     with pytest.raises(ConfigError, match="head_mass_kg"):
         simulate_loop(loop, config, plant_parameters=heavier)
+
+
+def test_the_patients_motion_is_in_the_head_height_the_cameras_see_and_the_log_holds(config):
+    # A fast drift, and too short a run for the bladder to answer it: the logged head height
+    # is the bladder's (the same run without motion) plus the drift.
+    config.duration_s = 0.2
+    still = simulate(config).signals["head_height_m"]
+    config.patient_motion.enabled = True
+    config.patient_motion.drift_rate_m_per_s = 0.01
+    config.patient_motion.shift_rate_per_s = 0.0
+    config.patient_motion.breathing_amplitude_m = 0.0
+    moving = simulate(config).signals["head_height_m"]
+    np.testing.assert_allclose(moving.values[0] - still.values[0], 0.01 * moving.times_s, atol=5e-5)

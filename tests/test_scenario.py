@@ -51,6 +51,10 @@ def test_user_file_overrides_only_what_it_names(tmp_path):
         ),
         ("duration_s: -1\n", r"duration_s = -1"),
         (
+            "patient_motion:\n  enabled: true\n  shift_std_m: -0.002\n",
+            r"patient_motion\.shift_std_m = -0\.002",
+        ),
+        (
             "cameras:\n  kinect_v1:\n    rendering:\n      enabled: true\n"
             "      vertical_fov_deg: 190.0\n",
             r"cameras\.kinect_v1\.rendering\.vertical_fov_deg = 190\.0: expected an angle",

@@ -1,0 +1,150 @@
+"""The patient's own motion, added to the head height the bladder holds.
+
+A patient is not a mannequin: the head drifts slowly as the neck relaxes, shifts by a few
+millimetres within a second when the patient swallows or settles, and moves with breathing. The
+cameras see, and the controller must correct, the sum of the bladder's lift and this motion.
+
+- Drift: a constant rate (m/s), ``drift_rate_m_per_s``.
+- Shifts: at random times, a Poisson process of ``shift_rate_per_s``; each moves the head by a
+  normal draw of std ``shift_std_m``, reached with the time constant ``shift_time_constant_s``
+  (95 % within three of them).
+- Breathing: ``breathing_amplitude_m`` sin(2 pi ``breathing_frequency_hz`` t + phi), the phase phi
+  drawn once per run.
+
+All randomness comes from RandomSources (``{name}.shift_start`` and ``{name}.shift_size`` each
+tick, ``{name}.phase`` once per run), so a run seeded with ``diagram.SetRandomContext`` is
+reproducible bit for bit.
+"""
+
+import math
+from dataclasses import dataclass
+
+from pydrake.common import RandomDistribution
+from pydrake.symbolic import Expression, MakeVectorVariable, Variable, if_then_else, sin
+from pydrake.systems.framework import DiagramBuilder, OutputPort
+from pydrake.systems.primitives import Adder, RandomSource
+
+from maskless.errors import ConfigError
+from maskless.systems.config_loading import UNSET
+from maskless.systems.named_symbolic_system import add_named_symbolic_system, building_expressions
+
+# The RandomSource that draws the breathing phase samples at t = 0 and never again within a run.
+_ONCE_S = 1.0e12
+
+
+@dataclass
+class PatientMotionConfig:
+    """The patient's motion; a section whose ``enabled`` is false needs nothing else.
+
+    Attributes:
+        enabled: add the motion to the head height.
+        tick_s: the period at which shifts may start (s).
+        drift_rate_m_per_s: the head's slow drift (m/s), signed.
+        shift_rate_per_s: mean number of shifts per second.
+        shift_std_m: std of a shift's size (m).
+        shift_time_constant_s: how fast a shift is made (s).
+        breathing_amplitude_m: peak height of the breathing motion (m).
+        breathing_frequency_hz: its frequency (Hz).
+    """
+
+    enabled: bool = False
+    tick_s: float = UNSET
+    drift_rate_m_per_s: float = UNSET
+    shift_rate_per_s: float = UNSET
+    shift_std_m: float = UNSET
+    shift_time_constant_s: float = UNSET
+    breathing_amplitude_m: float = UNSET
+    breathing_frequency_hz: float = UNSET
+
+
+def validate_patient_motion(config: PatientMotionConfig) -> None:
+    """Raises ConfigError naming the ``patient_motion`` field that is out of range."""
+    if not config.enabled:
+        return
+    checks = [
+        ("tick_s", config.tick_s > 0, "a positive period"),
+        ("drift_rate_m_per_s", math.isfinite(config.drift_rate_m_per_s), "a finite rate"),
+        (
+            "shift_rate_per_s",
+            0 <= config.shift_rate_per_s * config.tick_s < 1,
+            "a rate >= 0 with fewer than one shift per tick on average",
+        ),
+        ("shift_std_m", config.shift_std_m >= 0, ">= 0"),
+        ("shift_time_constant_s", config.shift_time_constant_s > 0, "a positive time constant"),
+        ("breathing_amplitude_m", config.breathing_amplitude_m >= 0, ">= 0"),
+        (
+            "breathing_frequency_hz",
+            0 <= config.breathing_frequency_hz < math.inf,
+            "a finite frequency >= 0",
+        ),
+    ]
+    for field_name, in_range, expected in checks:
+        if not in_range:
+            value = getattr(config, field_name)
+            raise ConfigError(f"patient_motion.{field_name} = {value}: expected {expected}")
+
+
+def add_patient_motion(
+    builder: DiagramBuilder, config: PatientMotionConfig, lift: OutputPort, name: str
+) -> OutputPort:
+    """Adds the motion to ``lift`` (the bladder's head height, m); returns the head's height.
+
+    With ``enabled`` false, returns ``lift`` itself and adds nothing.
+
+    .. pydrake_system::
+
+        name: patient_motion
+        output_ports:
+        - motion_m
+    """
+    if not config.enabled:
+        return lift
+    validate_patient_motion(config)
+    start = builder.AddNamedSystem(
+        f"{name}.shift_start", RandomSource(RandomDistribution.kUniform, 1, config.tick_s)
+    )
+    size = builder.AddNamedSystem(
+        f"{name}.shift_size", RandomSource(RandomDistribution.kGaussian, 1, config.tick_s)
+    )
+    phase = builder.AddNamedSystem(
+        f"{name}.phase", RandomSource(RandomDistribution.kUniform, 1, _ONCE_S)
+    )
+    motion = _add_motion_dynamics(builder, config, name)
+    builder.Connect(start.get_output_port(), motion.inputs["shift_start_draw"])
+    builder.Connect(size.get_output_port(), motion.inputs["shift_size_draw"])
+    builder.Connect(phase.get_output_port(), motion.inputs["phase_fraction"])
+    total = builder.AddNamedSystem(f"{name}.head_height", Adder(2, 1))
+    builder.Connect(lift, total.get_input_port(0))
+    builder.Connect(motion.outputs["motion_m"], total.get_input_port(1))
+    return total.get_output_port()
+
+
+@building_expressions
+def _add_motion_dynamics(builder: DiagramBuilder, config: PatientMotionConfig, name: str):
+    t = Variable("t")
+    (start_draw,) = MakeVectorVariable(1, "shift_start_draw")
+    (size_draw,) = MakeVectorVariable(1, "shift_size_draw")
+    (phase_fraction,) = MakeVectorVariable(1, "phase_fraction")
+    target, level = Variable("shift_target_m"), Variable("shift_level_m")
+    # A shift starts in a tick with probability rate x tick: a Poisson process, thinned per tick.
+    starts = start_draw < config.shift_rate_per_s * config.tick_s
+    size = config.shift_std_m * size_draw
+    next_target = if_then_else(starts, target + size, Expression(target))
+    blend = 1.0 - math.exp(-config.tick_s / config.shift_time_constant_s)
+    breathing = config.breathing_amplitude_m * sin(
+        2 * math.pi * (config.breathing_frequency_hz * t + phase_fraction)
+    )
+    return add_named_symbolic_system(
+        builder,
+        name,
+        inputs=[
+            ("shift_start_draw", [start_draw]),
+            ("shift_size_draw", [size_draw]),
+            ("phase_fraction", [phase_fraction]),
+        ],
+        outputs=[("motion_m", [level + config.drift_rate_m_per_s * t + breathing])],
+        state=[target, level],
+        dynamics=[next_target, level + blend * (next_target - level)],
+        time=t,
+        time_period=config.tick_s,
+    )

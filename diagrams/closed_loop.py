@@ -52,6 +52,7 @@ from maskless.systems.plant.pneumatic_plant import (
     equilibrium_state,
     set_pneumatic_parameters,
 )
+from maskless.systems.sensing.camera_error import add_camera_error
 from maskless.systems.sensing.depth_sensor import add_depth_sensor
 from maskless.systems.sensing.local_kalman_filter import add_local_kalman_filter
 from maskless.systems.sensing.track_fusion import add_track_fusion
@@ -206,7 +207,8 @@ def add_cameras(
     """Adds every camera watching ``head_height``: a measurement model, or a rendered camera.
 
     A camera whose ``rendering.enabled`` is set renders the scene (added once, for all of them)
-    and finds the face in its images; with ``frames``, each rendered camera appends a frame to it
+    and finds the face in its images; either way its ``error`` section, when enabled, is added to
+    what it measures; with ``frames``, each rendered camera appends a frame to it
     at least ``config.camera_image_rate_hz`` times a second (every whole number of frames that
     gives it: every 7th of 15 frames a second for 2 Hz).
     """
@@ -214,8 +216,11 @@ def add_cameras(
     scene = None
     for name, camera in config.cameras.items():
         if not camera.rendering.enabled:
-            sensors[name] = add_depth_sensor(builder, name, camera)
-            builder.Connect(head_height, sensors[name].inputs["head_height_m"])
+            sensor = add_depth_sensor(builder, name, camera)
+            builder.Connect(head_height, sensor.inputs["head_height_m"])
+            sensors[name] = add_camera_error(
+                builder, name, camera.error, sensor, 1.0 / camera.frame_rate_hz
+            )
             continue
         if scene is None:
             # Imported here: OpenCV and scipy.stats would add ~0.3 s to every run's start.
@@ -224,13 +229,16 @@ def add_cameras(
 
             scene = add_camera_scene(builder, head_height)
         sink = None if frames is None else functools.partial(_append_frame, frames)
-        sensors[name] = add_rendered_depth_sensor(
+        sensor = add_rendered_depth_sensor(
             builder,
             name,
             camera,
             scene,
             frame_sink=sink,
             record_every_frames=max(1, int(camera.frame_rate_hz // config.camera_image_rate_hz)),
+        )
+        sensors[name] = add_camera_error(
+            builder, name, camera.error, sensor, 1.0 / camera.frame_rate_hz
         )
     return sensors
 

@@ -40,6 +40,7 @@ from maskless.systems.plant.pneumatic_plant import (
     load_pneumatic_parameters,
     validate_pneumatic_parameters,
 )
+from maskless.systems.sensing.camera_error import validate_camera_error
 from maskless.systems.sensing.depth_sensor import (
     KinectV1Config,
     KinectV2Config,
@@ -461,6 +462,7 @@ def _validate_cameras(config: Scenario) -> None:
                 f"cameras.{name} = {camera!r}: expected a KinectV1Config or a KinectV2Config"
             )
         validate_sensor_config(f"cameras.{name}", camera)
+        validate_camera_error(f"cameras.{name}", camera.error)
 
 
 def _validate_choices(config: Scenario) -> None:

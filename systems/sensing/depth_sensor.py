@@ -40,6 +40,7 @@ from maskless.systems.named_symbolic_system import (
     building_expressions,
     diagram_form,
 )
+from maskless.systems.sensing.camera_error import CameraErrorConfig
 from maskless.systems.units import mm_to_m
 
 # Kinect v1 disparity-to-depth model z = 1 / (DISPARITY_SLOPE d + DISPARITY_INTERCEPT), d the 11-bit
@@ -95,6 +96,8 @@ class DepthSensorConfig:
         min_range_m: nearest valid distance (m).
         max_range_m: farthest valid distance (m).
         rendering: whether and how the camera is rendered instead of modelled.
+        error: error beyond the per-pixel formulas, added to the measurement
+            (``camera_error``).
     """
 
     mount_height_m: float = UNSET
@@ -105,6 +108,7 @@ class DepthSensorConfig:
     min_range_m: float = UNSET
     max_range_m: float = UNSET
     rendering: CameraRenderingConfig = field(default_factory=CameraRenderingConfig)
+    error: CameraErrorConfig = field(default_factory=CameraErrorConfig)
 
 
 @dataclass

@@ -24,8 +24,7 @@ from pydrake.symbolic import Expression, MakeVectorVariable, Variable, if_then_e
 from pydrake.systems.framework import DiagramBuilder, OutputPort
 from pydrake.systems.primitives import Adder, RandomSource
 
-from maskless.errors import ConfigError
-from maskless.systems.config_loading import UNSET
+from maskless.systems.config_loading import UNSET, refuse_out_of_range
 from maskless.systems.named_symbolic_system import add_named_symbolic_system, building_expressions
 
 # The RandomSource that draws the breathing phase samples at t = 0 and never again within a run.
@@ -78,10 +77,7 @@ def validate_patient_motion(config: PatientMotionConfig) -> None:
             "a finite frequency >= 0",
         ),
     ]
-    for field_name, in_range, expected in checks:
-        if not in_range:
-            value = getattr(config, field_name)
-            raise ConfigError(f"patient_motion.{field_name} = {value}: expected {expected}")
+    refuse_out_of_range("patient_motion", config, checks)
 
 
 def add_patient_motion(

@@ -25,8 +25,7 @@ from pydrake.symbolic import Expression, MakeVectorVariable, Variable, if_then_e
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import RandomSource
 
-from maskless.errors import ConfigError
-from maskless.systems.config_loading import UNSET
+from maskless.systems.config_loading import UNSET, refuse_out_of_range
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
@@ -63,10 +62,7 @@ def validate_camera_error(name: str, config: CameraErrorConfig) -> None:
         ("correlated_std_m", 0 <= config.correlated_std_m < math.inf, "a finite std >= 0"),
         ("correlation_time_s", 0 < config.correlation_time_s < math.inf, "a positive time"),
     ]
-    for field_name, in_range, expected in checks:
-        if not in_range:
-            value = getattr(config, field_name)
-            raise ConfigError(f"{name}.error.{field_name} = {value}: expected {expected}")
+    refuse_out_of_range(f"{name}.error", config, checks)
 
 
 def add_camera_error(

@@ -11,7 +11,6 @@ resolution); a frame outside the working range or dropped (probability ``dropout
 zeros in the authors' logs) reads 0 with ``valid`` = 0, as a Kinect reports invalid pixels.
 """
 
-import functools
 import math
 from dataclasses import dataclass, field
 from statistics import NormalDist
@@ -32,8 +31,7 @@ from pydrake.symbolic import (
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import RandomSource
 
-from maskless.errors import ConfigError
-from maskless.systems.config_loading import UNSET
+from maskless.systems.config_loading import UNSET, refuse_out_of_range
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
@@ -181,10 +179,8 @@ def latency_frames(config: DepthSensorConfig) -> int:
 
 def validate_sensor_config(name: str, config: DepthSensorConfig) -> None:
     """Raises ConfigError naming the field when a sensor's parameters are out of range."""
-    for in_range, field_name, expected in _range_checks(config):
-        if not in_range:
-            value = functools.reduce(getattr, field_name.split("."), config)
-            raise ConfigError(f"{name}.{field_name} = {value}: expected {expected}")
+    checks = ((field_name, ok, expected) for ok, field_name, expected in _range_checks(config))
+    refuse_out_of_range(name, config, checks)
 
 
 def _range_checks(config: DepthSensorConfig):

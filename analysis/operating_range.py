@@ -35,6 +35,8 @@ class OperatingRange:
         time_constants_s: time constants -1/Re(λ) of the linearised plant's modes (a complex
             pair counted once, the row padded with NaN), slowest first, one row per current
             (N, states); NaN where the head is at or past a travel limit.
+        beyond_travel: where the head rests at or past a travel limit (N,), held by the model's
+            stop rather than the bladder: no lift a patient's head reaches.
     """
 
     valve: str
@@ -44,6 +46,7 @@ class OperatingRange:
     gauge_pressure_pa: np.ndarray
     dc_gain_m_per_a: np.ndarray
     time_constants_s: np.ndarray
+    beyond_travel: np.ndarray
 
     @property
     def slow_time_constant_s(self) -> np.ndarray:
@@ -52,8 +55,9 @@ class OperatingRange:
 
     @property
     def lift_span_m(self) -> float:
-        """How far the swept current moves the steady lift (m)."""
-        return float(np.max(self.lift_m) - np.min(self.lift_m))
+        """How far the swept current moves the steady lift within the travel (m); 0 if nowhere."""
+        within = self.lift_m[~self.beyond_travel]
+        return float(np.max(within) - np.min(within)) if within.size else 0.0
 
 
 def valve_currents_a(p: PneumaticParameters, valve: str, num_points: int) -> np.ndarray:
@@ -116,14 +120,15 @@ def operating_range(
     currents = np.asarray(currents_a, dtype=float)
     if currents.ndim != 1 or currents.size == 0 or not np.all(np.diff(currents) > 0):
         raise ValueError(f"currents_a = {currents}: expected increasing coil currents (A)")
-    lifts, pressures, gains, time_constants = [], [], [], []
+    lifts, pressures, gains, time_constants, beyond = [], [], [], [], []
     modes = len(VALVE_STATES[valve])
     for current in currents:
         inlet, outlet = (current, held_current_a) if valve == "inlet" else (held_current_a, current)
         state = equilibrium_state(p, inlet, outlet)
         lifts.append(state[LIFT])
         pressures.append(state[GAUGE_PRESSURE])
-        if beyond_travel(p, state):
+        beyond.append(beyond_travel(p, state))
+        if beyond[-1]:
             # Held by a travel limit (a well-sealed bladder filling towards the supply): no gain.
             gains.append(np.nan)
             time_constants.append(np.full(modes, np.nan))
@@ -141,6 +146,7 @@ def operating_range(
         gauge_pressure_pa=np.array(pressures),
         dc_gain_m_per_a=np.array(gains),
         time_constants_s=np.array(time_constants),
+        beyond_travel=np.array(beyond, dtype=bool),
     )
 
 

@@ -38,6 +38,7 @@ from maskless.diagrams.scenario_plant import linear_plant_model, paper_valve_cur
 from maskless.errors import ConfigError
 from maskless.systems.control.offset_free_lqg import add_offset_free_lqg
 from maskless.systems.control.paper_lqg import add_paper_lqg, paper_lqg
+from maskless.systems.late_random_sources import LateRandomSources
 from maskless.systems.linear_model import LinearModel
 from maskless.systems.named_symbolic_system import PortMap
 from maskless.systems.paper_parameters import paper_filter_variances_si
@@ -203,6 +204,7 @@ def add_cameras(
     config: Scenario,
     head_height: OutputPort,
     frames: list[CameraFrame] | None = None,
+    late: LateRandomSources | None = None,
 ) -> dict[str, PortMap]:
     """Adds every camera watching ``head_height``: a measurement model, or a rendered camera.
 
@@ -219,7 +221,7 @@ def add_cameras(
             sensor = add_depth_sensor(builder, name, camera)
             builder.Connect(head_height, sensor.inputs["head_height_m"])
             sensors[name] = add_camera_error(
-                builder, name, camera.error, sensor, 1.0 / camera.frame_rate_hz
+                builder, name, camera.error, sensor, 1.0 / camera.frame_rate_hz, late
             )
             continue
         if scene is None:
@@ -238,7 +240,7 @@ def add_cameras(
             record_every_frames=max(1, int(camera.frame_rate_hz // config.camera_image_rate_hz)),
         )
         sensors[name] = add_camera_error(
-            builder, name, camera.error, sensor, 1.0 / camera.frame_rate_hz
+            builder, name, camera.error, sensor, 1.0 / camera.frame_rate_hz, late
         )
     return sensors
 
@@ -264,6 +266,7 @@ def add_sensing_chain(
     head_height: OutputPort,
     start_height_m,
     frames: list[CameraFrame] | None = None,
+    late: LateRandomSources | None = None,
 ) -> SensingChain:
     """Adds every camera watching ``head_height``, a local Kalman filter on each, and the fusion.
 
@@ -271,7 +274,7 @@ def add_sensing_chain(
     Rendered cameras append recorded frames to ``frames`` (``add_cameras``).
     """
     variances = paper_filter_variances_si(config.paper)
-    sensors = add_cameras(builder, config, head_height, frames)
+    sensors = add_cameras(builder, config, head_height, frames, late)
     filters = {}
     for name, sensor_config in config.cameras.items():
         local_filter = add_local_kalman_filter(
@@ -456,13 +459,16 @@ def assemble_loop(
     """
     builder.Connect(drive.inlet, plant.inlet)
     builder.Connect(drive.outlet, plant.outlet)
+    # The scenario models' RandomSources are added last, so switching one on changes no draw of
+    # the others (late_random_sources).
+    late = LateRandomSources()
     # The head's height: the bladder's lift plus the patient's own motion, when there is any.
     head_height = add_patient_motion(
-        builder, config.patient_motion, plant.head_height, "patient_motion"
+        builder, config.patient_motion, plant.head_height, "patient_motion", late
     )
     frames: list[CameraFrame] = []
     sensing = add_sensing_chain(
-        builder, config, head_height, plant.start_height_m, frames if record else None
+        builder, config, head_height, plant.start_height_m, frames if record else None, late
     )
     if drive.controller is not None:
         controller = drive.controller
@@ -483,6 +489,7 @@ def assemble_loop(
         drive.period_s,
         record,
     )
+    late.add_all(builder)
     diagram = builder.Build()
     diagram.set_name(diagram_name)
     return ClosedLoop(

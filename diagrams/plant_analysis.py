@@ -127,13 +127,15 @@ def operating_range_report(ranges: dict) -> dict:
             "rows": rows,
         }
     inlet = ranges["inlet"]
+    within = inlet.lift_m[~inlet.beyond_travel]
     return {
         "valves": valves,
-        "working_range_mm": [
-            m_to_mm(float(inlet.lift_m.min())),
-            m_to_mm(float(inlet.lift_m.max())),
-        ],
-        "working_range_note": "steady lifts the inlet holds with the outlet shut",
+        # None when the inlet holds the head nowhere inside its travel.
+        "working_range_mm": [m_to_mm(float(within.min())), m_to_mm(float(within.max()))]
+        if within.size
+        else None,
+        "working_range_note": "steady lifts the inlet holds with the outlet shut, inside the "
+        "travel",
     }
 
 
@@ -159,7 +161,7 @@ def format_operating_range(report: dict, head_mass_kg: float) -> str:
             f"{valve.capitalize()} swept {rows[0]['current_ma']:.0f}-{rows[-1]['current_ma']:.0f} "
             f"mA, {entry['held_valve']} held at {entry['held_current_ma']:.0f} mA: lift "
             f"{rows[0]['lift_mm']:.2f} to {rows[-1]['lift_mm']:.2f} mm "
-            f"(span {entry['lift_span_mm']:.2f} mm)"
+            f"(span {entry['lift_span_mm']:.2f} mm inside the travel)"
         )
         lines.append("   current    lift   gauge    DC gain   slow tau")
         lines.append("      (mA)    (mm)   (kPa)    (mm/mA)        (s)")
@@ -167,14 +169,17 @@ def format_operating_range(report: dict, head_mass_kg: float) -> str:
             steady = f"    {row['current_ma']:6.1f}  {_tidy(row['lift_mm'], 2):6.2f}"
             steady += f"  {_tidy(row['gauge_pressure_kpa'], 3):6.3f}"
             if row["dc_gain_mm_per_ma"] is None:
-                lines.append(f"{steady}  at or past the travel limit")
+                lines.append(f"{steady}  past the travel: held by the stop")
                 continue
             lines.append(
                 f"{steady}  {row['dc_gain_mm_per_ma']:+9.4f}  {row['slow_time_constant_s']:9.2f}"
             )
         lines.append("")
-    low, high = report["working_range_mm"]
-    lines.append(f"Working range (inlet, outlet shut): {low:.2f} to {high:.2f} mm of lift")
+    if report["working_range_mm"] is None:
+        lines.append("Working range (inlet, outlet shut): none inside the travel")
+    else:
+        low, high = report["working_range_mm"]
+        lines.append(f"Working range (inlet, outlet shut): {low:.2f} to {high:.2f} mm of lift")
     lines += _files_lines(report)
     return "\n".join(lines)
 
@@ -380,7 +385,8 @@ def _checked_cases(scenario: Scenario, request: StabilityRequest, allocation):
     for factor in factors:
         head = dataclasses.replace(p, head_mass_kg=factor * p.head_mass_kg)
         low, high = holdable_lift_range_m(head, allocation)
-        if not low < high:  # pinned at a travel limit throughout: the bladder cannot carry it
+        # Resting past a travel limit at every command: the bladder cannot carry this head.
+        if high <= p.min_lift_m or low >= p.max_lift_m:
             raise ConfigError(
                 f"{request.label('mass_factors')} {request.mass_factors}: a "
                 f"{head.head_mass_kg:.2f} kg head (x{factor:g}) cannot be held anywhere in the "

@@ -69,7 +69,8 @@ def summarize(run: "SimulationRun") -> dict:
     )
 
     def tracking_mm(value):
-        return None if value is None else m_to_mm(value)
+        # A figure that is no number (a head that went NaN) is reported as none: JSON has no NaN.
+        return None if value is None or not np.isfinite(value) else m_to_mm(value)
 
     return {
         "plant": loop.plant,
@@ -86,7 +87,7 @@ def summarize(run: "SimulationRun") -> dict:
             "max_abs_error_mm": tracking_mm(metrics.max_abs_error_m),
             "time_within_tolerance_fraction": metrics.time_within_tolerance_fraction,
             "overshoot_mm": tracking_mm(metrics.overshoot_m),
-            "final_error_mm": m_to_mm(metrics.final_error_m),
+            "final_error_mm": tracking_mm(metrics.final_error_m),
             "head_travel_mm": m_to_mm(float(head.max() - head.min())),
             "reference_travel_mm": m_to_mm(float(reference.max() - reference.min())),
         },

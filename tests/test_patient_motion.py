@@ -81,6 +81,21 @@ def test_shifts_arrive_as_a_poisson_process_with_the_configured_size_and_speed()
     assert np.std(sizes) == pytest.approx(std, rel=0.15)
 
 
+def test_the_gaps_between_shifts_are_exponential_with_mean_one_over_the_rate():
+    rate = 0.5
+    config = motion(shift_rate_per_s=rate, shift_std_m=0.002)
+    _, level = simulate_motion(config, 2000.0, seed=5)
+    targets = _targets(level, config.tick_s, config.shift_time_constant_s)
+    gaps = np.diff(np.flatnonzero(np.abs(np.diff(targets)) > 1e-12)) * config.tick_s
+    # One draw per tick: the gaps are geometric, mean tick / p and std tick sqrt(1 - p) / p, which
+    # tend to the exponential's 1 / rate as the ticks shrink.
+    p = rate * config.tick_s
+    mean, std = config.tick_s / p, config.tick_s * math.sqrt(1 - p) / p
+    assert gaps.mean() == pytest.approx(mean, rel=4 / math.sqrt(gaps.size))
+    assert gaps.std() == pytest.approx(std, rel=0.1)
+    assert mean == pytest.approx(1 / rate)
+
+
 def test_a_shift_is_made_within_a_second():
     # Rare shifts: how much of each the head has made 0.6 s after it starts, against where it
     # rests 5 s later (read from the motion itself).
@@ -115,7 +130,9 @@ def test_no_motion_adds_nothing():
     "fields, name",
     [
         (dict(tick_s=0.0), "tick_s"),
-        (dict(shift_rate_per_s=20.0), "shift_rate_per_s"),
+        (dict(shift_rate_per_s=1.0), "shift_rate_per_s"),
+        (dict(tick_s=math.inf), "tick_s"),
+        (dict(breathing_amplitude_m=math.inf), "breathing_amplitude_m"),
         (dict(shift_std_m=-1.0), "shift_std_m"),
         (dict(shift_time_constant_s=0.0), "shift_time_constant_s"),
         (dict(breathing_amplitude_m=-0.001), "breathing_amplitude_m"),

@@ -162,10 +162,14 @@ def test_a_sealed_or_a_leaky_bladder_is_analysed_and_simulated_not_a_traceback(
         parse_constant=lambda name: pytest.fail(f"{name} in the report: not JSON"),
     )
     inlet = report["valves"]["inlet"]["rows"]
-    pinned = [row for row in inlet if row["dc_gain_mm_per_ma"] is None]
-    # A well-sealed bladder fills towards the supply and pushes the head past its travel; a
-    # leaky one never gets there.
-    assert bool(pinned) == (leak_factor < 1)
-    assert ("at or past the travel limit" in text) == (leak_factor < 1)
+    past = [row for row in inlet if row["dc_gain_mm_per_ma"] is None]
+    # A well-sealed bladder fills towards the supply and pushes the head past its travel (onto
+    # the model's stop); a leaky one never gets there.
+    assert bool(past) == (leak_factor < 1)
+    assert ("past the travel: held by the stop" in text) == (leak_factor < 1)
+    travel_mm = (-8.0, 40.0)  # pneumatic.yaml's min_lift_m and max_lift_m
+    assert all(row["lift_mm"] >= travel_mm[1] for row in past)
+    low, high = report["working_range_mm"]
+    assert travel_mm[0] <= low <= high <= travel_mm[1]
     args = ["simulate", "--config", str(config), "--duration", "3", "--out", str(tmp_path / "s")]
     assert main(args) == 0

@@ -11,7 +11,9 @@ from system_harness import port_layout
 
 from maskless.errors import ConfigError
 from maskless.systems.plant.pneumatic_physics import (
+    GAUGE_PRESSURE,
     LIFT,
+    head_force_n,
     valve_opening,
 )
 from maskless.systems.plant.pneumatic_plant import (
@@ -312,7 +314,10 @@ def test_a_sealed_bladder_with_the_inlet_open_fills_to_the_supply_and_pins_the_h
     # No leak and the outlet shut: nothing balances the inlet short of the supply's pressure.
     assert steady_gauge_pressure_pa(sealed, inlet_open, 0.0) == sealed.supply_gauge_pressure_pa
     state = equilibrium_state(sealed, p.inlet.saturation_current_a, 0.0)
-    assert state[LIFT] == p.max_lift_m and beyond_travel(sealed, state)
+    # Past the travel, on the model's stop, and at rest there: no net force on the head.
+    assert state[LIFT] > p.max_lift_m and beyond_travel(sealed, state)
+    force = head_force_n(state[GAUGE_PRESSURE], state[LIFT], 0.0, sealed)
+    assert abs(force) < 1e-9 * sealed.supply_gauge_pressure_pa * sealed.contact_area_m2
 
 
 def test_a_sealed_bladder_with_both_valves_shut_holds_the_atmosphere(p):

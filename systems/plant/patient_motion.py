@@ -25,10 +25,14 @@ from pydrake.systems.framework import DiagramBuilder, OutputPort
 from pydrake.systems.primitives import Adder, RandomSource
 
 from maskless.systems.config_loading import UNSET, refuse_out_of_range
+from maskless.systems.late_random_sources import LateRandomSources, add_random_source
 from maskless.systems.named_symbolic_system import add_named_symbolic_system, building_expressions
 
 # The RandomSource that draws the breathing phase samples at t = 0 and never again within a run.
 _ONCE_S = 1.0e12
+# A shift may start once per tick; with at most this chance per tick, two shifts a tick apart
+# stay rare and the starts are close to a Poisson process.
+_MAX_SHIFT_PROBABILITY = 0.05
 
 
 @dataclass
@@ -61,16 +65,21 @@ def validate_patient_motion(config: PatientMotionConfig) -> None:
     if not config.enabled:
         return
     checks = [
-        ("tick_s", config.tick_s > 0, "a positive period"),
+        ("tick_s", 0 < config.tick_s < math.inf, "a positive, finite period"),
         ("drift_rate_m_per_s", math.isfinite(config.drift_rate_m_per_s), "a finite rate"),
         (
             "shift_rate_per_s",
-            0 <= config.shift_rate_per_s * config.tick_s < 1,
-            "a rate >= 0 with fewer than one shift per tick on average",
+            0 <= config.shift_rate_per_s * config.tick_s <= _MAX_SHIFT_PROBABILITY,
+            f"a rate >= 0 with at most {_MAX_SHIFT_PROBABILITY} shifts per tick on average "
+            "(one draw per tick is a Poisson process only when shifts are rare per tick)",
         ),
-        ("shift_std_m", config.shift_std_m >= 0, ">= 0"),
-        ("shift_time_constant_s", config.shift_time_constant_s > 0, "a positive time constant"),
-        ("breathing_amplitude_m", config.breathing_amplitude_m >= 0, ">= 0"),
+        ("shift_std_m", 0 <= config.shift_std_m < math.inf, "a finite std >= 0"),
+        (
+            "shift_time_constant_s",
+            0 < config.shift_time_constant_s < math.inf,
+            "a positive, finite time constant",
+        ),
+        ("breathing_amplitude_m", 0 <= config.breathing_amplitude_m < math.inf, "finite, >= 0"),
         (
             "breathing_frequency_hz",
             0 <= config.breathing_frequency_hz < math.inf,
@@ -81,11 +90,16 @@ def validate_patient_motion(config: PatientMotionConfig) -> None:
 
 
 def add_patient_motion(
-    builder: DiagramBuilder, config: PatientMotionConfig, lift: OutputPort, name: str
+    builder: DiagramBuilder,
+    config: PatientMotionConfig,
+    lift: OutputPort,
+    name: str,
+    late: LateRandomSources | None = None,
 ) -> OutputPort:
     """Adds the motion to ``lift`` (the bladder's head height, m); returns the head's height.
 
-    With ``enabled`` false, returns ``lift`` itself and adds nothing.
+    With ``enabled`` false, returns ``lift`` itself and adds nothing. With ``late``, its
+    RandomSources wait there to be added after every other system.
 
     .. pydrake_system::
 
@@ -96,19 +110,15 @@ def add_patient_motion(
     if not config.enabled:
         return lift
     validate_patient_motion(config)
-    start = builder.AddNamedSystem(
-        f"{name}.shift_start", RandomSource(RandomDistribution.kUniform, 1, config.tick_s)
-    )
-    size = builder.AddNamedSystem(
-        f"{name}.shift_size", RandomSource(RandomDistribution.kGaussian, 1, config.tick_s)
-    )
-    phase = builder.AddNamedSystem(
-        f"{name}.phase", RandomSource(RandomDistribution.kUniform, 1, _ONCE_S)
-    )
     motion = _add_motion_dynamics(builder, config, name)
-    builder.Connect(start.get_output_port(), motion.inputs["shift_start_draw"])
-    builder.Connect(size.get_output_port(), motion.inputs["shift_size_draw"])
-    builder.Connect(phase.get_output_port(), motion.inputs["phase_fraction"])
+    sources = (
+        ("shift_start", RandomDistribution.kUniform, config.tick_s, "shift_start_draw"),
+        ("shift_size", RandomDistribution.kGaussian, config.tick_s, "shift_size_draw"),
+        ("phase", RandomDistribution.kUniform, _ONCE_S, "phase_fraction"),
+    )
+    for suffix, distribution, period_s, port in sources:
+        source = RandomSource(distribution, 1, period_s)
+        add_random_source(builder, f"{name}.{suffix}", source, motion.inputs[port], late)
     total = builder.AddNamedSystem(f"{name}.head_height", Adder(2, 1))
     builder.Connect(lift, total.get_input_port(0))
     builder.Connect(motion.outputs["motion_m"], total.get_input_port(1))

@@ -216,8 +216,9 @@ def steady_gauge_pressure_pa(p: PneumaticParameters, inlet_opening, outlet_openi
 def steady_lift_m(p: PneumaticParameters, gauge_pressure: float) -> float:
     """The lift at which the head rests for a bladder gauge pressure (travel limits included).
 
-    A pressure that would push the head a whole travel beyond a limit (a well-sealed bladder
-    filling towards the supply pressure, or one drained to the vacuum) leaves it at that limit.
+    Past a travel limit the model's stop is a stiff spring (``limit_stiffness_n_m``) and the force
+    linear in the lift, so a rest more than a travel beyond a limit (a well-sealed bladder filling
+    towards the supply pressure) is solved exactly there; ``beyond_travel`` tells such a rest.
     """
     span = p.max_lift_m - p.min_lift_m
     low, high = p.min_lift_m - span, p.max_lift_m + span
@@ -225,19 +226,18 @@ def steady_lift_m(p: PneumaticParameters, gauge_pressure: float) -> float:
     def force(lift):
         return head_force_n(gauge_pressure, lift, 0.0, p)
 
-    if force(high) > 0:
-        return p.max_lift_m
-    if force(low) < 0:
-        return p.min_lift_m
+    for limit, outside in ((p.max_lift_m, force(high) > 0), (p.min_lift_m, force(low) < 0)):
+        if outside:
+            # F(limit) - (stiffness + limit stiffness) (lift - limit) = 0.
+            return limit + force(limit) / (p.stiffness_n_m + p.limit_stiffness_n_m)
     return brentq(force, low, high, xtol=1e-12)
 
 
 def beyond_travel(p: PneumaticParameters, state) -> bool:
     """Whether ``state`` puts the head at or past a travel limit (``min_lift_m``, ``max_lift_m``).
 
-    There the model's stop (a stiff spring, or the limit itself when ``steady_lift_m`` found no
-    rest within a travel of it) holds the head, not the bladder's balance: an operating point a
-    design or an analysis should not linearise about.
+    There the model's stop (a stiff spring) holds the head, not the bladder's balance: no
+    operating point for a design or an analysis, and no lift the patient's head could reach.
     """
     return not p.min_lift_m < state[LIFT] < p.max_lift_m
 

@@ -26,6 +26,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import RandomSource
 
 from maskless.systems.config_loading import UNSET, refuse_out_of_range
+from maskless.systems.late_random_sources import LateRandomSources, add_random_source
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
@@ -71,6 +72,7 @@ def add_camera_error(
     config: CameraErrorConfig,
     camera: PortMap,
     frame_period_s: float,
+    late: LateRandomSources | None = None,
 ) -> PortMap:
     """Adds ``config``'s error to ``camera``'s measurement; returns the ports the filter reads.
 
@@ -92,15 +94,14 @@ def add_camera_error(
         config: the error.
         camera: the camera's ports (``distance_m``, ``valid``).
         frame_period_s: the camera's frame period (s), the error's update period.
+        late: where its RandomSource waits to be added after every other system, if given.
     """
     if not config.enabled:
         return camera
     validate_camera_error(name, config)
-    noise = builder.AddNamedSystem(
-        f"{name}.error.noise", RandomSource(RandomDistribution.kGaussian, 2, frame_period_s)
-    )
     error = _add_error_dynamics(builder, f"{name}.error", config, frame_period_s)
-    builder.Connect(noise.get_output_port(), error.inputs["standard_normal"])
+    noise = RandomSource(RandomDistribution.kGaussian, 2, frame_period_s)
+    add_random_source(builder, f"{name}.error.noise", noise, error.inputs["standard_normal"], late)
     for port in ("distance_m", "valid"):
         builder.Connect(camera.outputs[port], error.inputs[port])
     return PortMap(outputs={port: error.outputs[port] for port in ("distance_m", "valid")})

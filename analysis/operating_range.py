@@ -54,10 +54,16 @@ class OperatingRange:
         return self.time_constants_s[:, 0]
 
     @property
+    def lift_range_m(self) -> tuple[float, float] | None:
+        """(lowest, highest) steady lift inside the travel (m); None if there is none."""
+        within = self.lift_m[~self.beyond_travel]
+        return (float(within.min()), float(within.max())) if within.size else None
+
+    @property
     def lift_span_m(self) -> float:
         """How far the swept current moves the steady lift within the travel (m); 0 if nowhere."""
-        within = self.lift_m[~self.beyond_travel]
-        return float(np.max(within) - np.min(within)) if within.size else 0.0
+        lifts = self.lift_range_m
+        return lifts[1] - lifts[0] if lifts else 0.0
 
 
 def valve_currents_a(p: PneumaticParameters, valve: str, num_points: int) -> np.ndarray:

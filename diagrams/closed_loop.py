@@ -217,32 +217,35 @@ def add_cameras(
     sensors = {}
     scene = None
     for name, camera in config.cameras.items():
-        if not camera.rendering.enabled:
+        if camera.rendering.enabled:
+            if scene is None:
+                # Imported here: OpenCV and scipy.stats would add ~0.3 s to every run's start.
+                from maskless.systems.sensing.camera_scene import add_camera_scene
+
+                scene = add_camera_scene(builder, head_height)
+            sensor = _add_rendered_camera(builder, config, name, scene, frames)
+        else:
             sensor = add_depth_sensor(builder, name, camera)
             builder.Connect(head_height, sensor.inputs["head_height_m"])
-            sensors[name] = add_camera_error(
-                builder, name, camera.error, sensor, 1.0 / camera.frame_rate_hz, late
-            )
-            continue
-        if scene is None:
-            # Imported here: OpenCV and scipy.stats would add ~0.3 s to every run's start.
-            from maskless.systems.sensing.camera_scene import add_camera_scene
-            from maskless.systems.sensing.rendered_depth_sensor import add_rendered_depth_sensor
-
-            scene = add_camera_scene(builder, head_height)
-        sink = None if frames is None else functools.partial(_append_frame, frames)
-        sensor = add_rendered_depth_sensor(
-            builder,
-            name,
-            camera,
-            scene,
-            frame_sink=sink,
-            record_every_frames=max(1, int(camera.frame_rate_hz // config.camera_image_rate_hz)),
-        )
         sensors[name] = add_camera_error(
             builder, name, camera.error, sensor, 1.0 / camera.frame_rate_hz, late
         )
     return sensors
+
+
+def _add_rendered_camera(builder, config: Scenario, name: str, scene, frames) -> PortMap:
+    """A rendered camera of ``scene``, recording into ``frames`` (when given)."""
+    from maskless.systems.sensing.rendered_depth_sensor import add_rendered_depth_sensor
+
+    camera = config.cameras[name]
+    return add_rendered_depth_sensor(
+        builder,
+        name,
+        camera,
+        scene,
+        frame_sink=None if frames is None else functools.partial(_append_frame, frames),
+        record_every_frames=max(1, int(camera.frame_rate_hz // config.camera_image_rate_hz)),
+    )
 
 
 def _append_frame(frames: list, camera: str, time_s: float, rgb, measurement) -> None:

@@ -109,7 +109,8 @@ def operating_range_report(ranges: dict) -> dict:
                 # None where the head is at or past a travel limit (nothing to linearise).
                 "dc_gain_mm_per_ma": json_safe(gain),
                 "slow_time_constant_s": json_safe(taus[0]),
-                "time_constants_s": [json_safe(t) for t in taus if t == t],  # NaN pads dropped
+                # The NaN that pads a row with a complex pair is no mode: dropped.
+                "time_constants_s": [json_safe(t) for t in taus if not math.isnan(t)],
             }
             for current, lift, pressure, gain, taus in zip(
                 sweep.currents_a,
@@ -126,14 +127,11 @@ def operating_range_report(ranges: dict) -> dict:
             "lift_span_mm": m_to_mm(sweep.lift_span_m),
             "rows": rows,
         }
-    inlet = ranges["inlet"]
-    within = inlet.lift_m[~inlet.beyond_travel]
+    lifts = ranges["inlet"].lift_range_m
     return {
         "valves": valves,
         # None when the inlet holds the head nowhere inside its travel.
-        "working_range_mm": [m_to_mm(float(within.min())), m_to_mm(float(within.max()))]
-        if within.size
-        else None,
+        "working_range_mm": [m_to_mm(lift) for lift in lifts] if lifts else None,
         "working_range_note": "steady lifts the inlet holds with the outlet shut, inside the "
         "travel",
     }

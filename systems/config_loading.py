@@ -261,11 +261,11 @@ def load_config(schema, filename: str | Path, defaults=None):
 def refuse_out_of_range(prefix: str, config, checks) -> None:
     """Raises ConfigError naming ``{prefix}.FIELD``, its value and what was expected.
 
-    ``checks`` is (field name, in range, what was expected) per field, in order; the first not in
+    ``checks`` is (in range, field name, what was expected) per field, in order; the first not in
     range is refused. A field name may be dotted (``rendering.color_scale``). A generator of
     checks is evaluated lazily, so a check may rely on those before it having passed.
     """
-    for field_name, in_range, expected in checks:
+    for in_range, field_name, expected in checks:
         if not in_range:
             value = functools.reduce(getattr, field_name.split("."), config)
             raise ConfigError(f"{prefix}.{field_name} = {value}: expected {expected}")

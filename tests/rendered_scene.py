@@ -3,22 +3,12 @@
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import PassThrough
 
 from maskless.diagrams.scenario import load_scenario
 from maskless.systems.sensing.camera_scene import add_camera_scene
 from maskless.systems.sensing.rendered_depth_sensor import add_rgbd_sensor
-
-
-class _HeadHeight(LeafSystem):
-    """Passes the exported head height through, so the scene's pose port has a source."""
-
-    def __init__(self):
-        super().__init__()
-        port = self.DeclareVectorInputPort("head_height_m", 1)
-        self.DeclareVectorOutputPort(
-            "head_height_m", 1, lambda context, out: out.SetFromVector(port.Eval(context))
-        )
 
 
 @dataclass
@@ -49,7 +39,8 @@ def shipped_cameras(**rendering_changes):
 
 def build_rendered_scene(cameras) -> RenderedScene:
     builder = DiagramBuilder()
-    head = builder.AddSystem(_HeadHeight())
+    # The scene's pose needs an output port: the exported head height passed through.
+    head = builder.AddSystem(PassThrough(1))
     builder.ExportInput(head.get_input_port(), "head_height_m")
     scene = add_camera_scene(builder, head.get_output_port())
     sensors = {}

@@ -65,24 +65,24 @@ def validate_patient_motion(config: PatientMotionConfig) -> None:
     if not config.enabled:
         return
     checks = [
-        ("tick_s", 0 < config.tick_s < math.inf, "a positive, finite period"),
-        ("drift_rate_m_per_s", math.isfinite(config.drift_rate_m_per_s), "a finite rate"),
+        (0 < config.tick_s < math.inf, "tick_s", "a positive, finite period"),
+        (math.isfinite(config.drift_rate_m_per_s), "drift_rate_m_per_s", "a finite rate"),
         (
-            "shift_rate_per_s",
             0 <= config.shift_rate_per_s * config.tick_s <= _MAX_SHIFT_PROBABILITY,
+            "shift_rate_per_s",
             f"a rate >= 0 with at most {_MAX_SHIFT_PROBABILITY} shifts per tick on average "
             "(one draw per tick is a Poisson process only when shifts are rare per tick)",
         ),
-        ("shift_std_m", 0 <= config.shift_std_m < math.inf, "a finite std >= 0"),
+        (0 <= config.shift_std_m < math.inf, "shift_std_m", "a finite std >= 0"),
         (
-            "shift_time_constant_s",
             0 < config.shift_time_constant_s < math.inf,
+            "shift_time_constant_s",
             "a positive, finite time constant",
         ),
-        ("breathing_amplitude_m", 0 <= config.breathing_amplitude_m < math.inf, "finite, >= 0"),
+        (0 <= config.breathing_amplitude_m < math.inf, "breathing_amplitude_m", "finite, >= 0"),
         (
-            "breathing_frequency_hz",
             0 <= config.breathing_frequency_hz < math.inf,
+            "breathing_frequency_hz",
             "a finite frequency >= 0",
         ),
     ]

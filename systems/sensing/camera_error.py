@@ -58,10 +58,10 @@ def validate_camera_error(name: str, config: CameraErrorConfig) -> None:
     if not config.enabled:
         return
     checks = [
-        ("offset_m", math.isfinite(config.offset_m), "a finite offset"),
-        ("white_noise_std_m", 0 <= config.white_noise_std_m < math.inf, "a finite std >= 0"),
-        ("correlated_std_m", 0 <= config.correlated_std_m < math.inf, "a finite std >= 0"),
-        ("correlation_time_s", 0 < config.correlation_time_s < math.inf, "a positive time"),
+        (math.isfinite(config.offset_m), "offset_m", "a finite offset"),
+        (0 <= config.white_noise_std_m < math.inf, "white_noise_std_m", "a finite std >= 0"),
+        (0 <= config.correlated_std_m < math.inf, "correlated_std_m", "a finite std >= 0"),
+        (0 < config.correlation_time_s < math.inf, "correlation_time_s", "a positive time"),
     ]
     refuse_out_of_range(f"{name}.error", config, checks)
 

@@ -8,18 +8,9 @@ outside the working range, rendered too near or too far, or lost at random
 (``rendering.invalid_pixel_probability``) read 0, as a Kinect reports a pixel it could not measure.
 """
 
-import math
-
 import numpy as np
 
-from maskless.systems.sensing.depth_sensor import (
-    DepthSensorConfig,
-    KinectV1Config,
-    KinectV2Config,
-    kinect_v1_noise_std_m,
-    kinect_v1_quantised_distance_m,
-    kinect_v2_noise_std_m,
-)
+from maskless.systems.sensing.depth_sensor import DepthSensorConfig, reported_distance_m
 
 
 def kinect_depth_image(
@@ -50,18 +41,7 @@ def kinect_depth_image(
         if rng is not None
         else 0.0
     )
-    if isinstance(config, KinectV1Config):
-        std = kinect_v1_noise_std_m(exact, config.incidence_angle_rad)
-        reported = kinect_v1_quantised_distance_m(exact + std * noise)
-    elif isinstance(config, KinectV2Config):
-        drift = config.warmup_drift_m * math.exp(
-            -(time_s + config.warmup_elapsed_s) / config.warmup_time_constant_s
-        )
-        std = kinect_v2_noise_std_m(exact, config.incidence_angle_rad)
-        noisy = exact + config.offset_m + drift + std * noise
-        reported = config.resolution_m * np.floor(noisy / config.resolution_m + 0.5)
-    else:
-        raise TypeError(f"no depth image model for config type {type(config).__name__}")
+    reported = reported_distance_m(config, exact, noise, time_s)
     valid = in_range
     probability = config.rendering.invalid_pixel_probability
     if rng is not None and probability > 0:

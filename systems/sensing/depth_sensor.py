@@ -158,6 +158,38 @@ def kinect_v1_quantised_distance_m(distance_m):
     return 1.0 / (DISPARITY_SLOPE * level + DISPARITY_INTERCEPT)
 
 
+def reported_distance_m(config: DepthSensorConfig, distance_m, standard_normal, time_s):
+    """The distance a camera reports for a true one and a standard normal draw.
+
+    Kinect v1: the published axial noise, then the nearest 11-bit disparity level. Kinect v2: its
+    offset, warm-up drift and axial noise, then its depth resolution. Floats, numpy arrays (a depth
+    image, ``depth_image_noise``) and ``pydrake.symbolic`` expressions (the measurement model)
+    alike, so both fidelities apply one formula.
+
+    Args:
+        config: the camera.
+        distance_m: the true camera-to-face distance (m).
+        standard_normal: the noise draw (0 for a noise-free camera).
+        time_s: the time (s), for the Kinect v2's warm-up drift.
+    """
+    if isinstance(config, KinectV1Config):
+        std = kinect_v1_noise_std_m(distance_m, config.incidence_angle_rad)
+        return kinect_v1_quantised_distance_m(distance_m + std * standard_normal)
+    if isinstance(config, KinectV2Config):
+        drift = config.warmup_drift_m * exp_any(
+            -(time_s + config.warmup_elapsed_s) / config.warmup_time_constant_s
+        )
+        std = kinect_v2_noise_std_m(distance_m, config.incidence_angle_rad)
+        noisy = distance_m + config.offset_m + drift + std * standard_normal
+        return config.resolution_m * floor_any(noisy / config.resolution_m + 0.5)
+    raise TypeError(f"no camera model for config type {type(config).__name__}")
+
+
+def exp_any(value):
+    """The exponential of a float or a ``pydrake.symbolic`` expression."""
+    return exp(value) if isinstance(value, Expression | Variable) else math.exp(value)
+
+
 def sqrt_any(value):
     """The square root of a float, a numpy array, or a ``pydrake.symbolic`` expression."""
     if isinstance(value, Expression | Variable):
@@ -179,8 +211,7 @@ def latency_frames(config: DepthSensorConfig) -> int:
 
 def validate_sensor_config(name: str, config: DepthSensorConfig) -> None:
     """Raises ConfigError naming the field when a sensor's parameters are out of range."""
-    checks = ((field_name, ok, expected) for ok, field_name, expected in _range_checks(config))
-    refuse_out_of_range(name, config, checks)
+    refuse_out_of_range(name, config, _range_checks(config))
 
 
 def _range_checks(config: DepthSensorConfig):
@@ -297,18 +328,7 @@ def _add_frame_dynamics(
     measured_height = (history[-1] + mount) if delay > 0 else head_height
     true_distance = mount - measured_height
 
-    if isinstance(config, KinectV1Config):
-        std = kinect_v1_noise_std_m(true_distance, config.incidence_angle_rad)
-        reported = kinect_v1_quantised_distance_m(true_distance + std * normal)
-    elif isinstance(config, KinectV2Config):
-        drift = config.warmup_drift_m * exp(
-            -(t + config.warmup_elapsed_s) / config.warmup_time_constant_s
-        )
-        std = kinect_v2_noise_std_m(true_distance, config.incidence_angle_rad)
-        noisy = true_distance + config.offset_m + drift + std * normal
-        reported = config.resolution_m * floor(noisy / config.resolution_m + 0.5)
-    else:
-        raise TypeError(f"{name}: no camera model for config type {type(config).__name__}")
+    reported = reported_distance_m(config, true_distance, normal, t)
 
     in_range = logical_and(true_distance >= config.min_range_m, true_distance <= config.max_range_m)
     if config.dropout_probability > 0:

@@ -34,6 +34,10 @@ _COMMANDS = {
         "maskless.diagrams.commands.analyze",
         "operating range of the plant; stability margins and robustness of the controllers",
     ),
+    "montecarlo": (
+        "maskless.diagrams.commands.montecarlo",
+        "a population of patients through the loop, on every core or a Dask cluster",
+    ),
     "workflow": (
         "maskless.diagrams.commands.workflow",
         "excite, identify, design and simulate: the paper's workflow end to end",

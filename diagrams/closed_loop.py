@@ -20,10 +20,8 @@ from pydrake.systems.primitives import (
     ConstantVectorSource,
     Multiplexer,
     Saturation,
-    TrajectorySource,
     VectorLogSink,
 )
-from pydrake.trajectories import PiecewisePolynomial
 
 from maskless.camera_images import CameraFrame
 from maskless.diagrams.controller_design import NominalPneumatic, offset_free_design
@@ -38,6 +36,7 @@ from maskless.diagrams.scenario_plant import linear_plant_model, paper_valve_cur
 from maskless.errors import ConfigError
 from maskless.systems.control.offset_free_lqg import add_offset_free_lqg
 from maskless.systems.control.paper_lqg import add_paper_lqg, paper_lqg
+from maskless.systems.control.step_reference import add_step_reference
 from maskless.systems.late_random_sources import LateRandomSources
 from maskless.systems.linear_model import LinearModel
 from maskless.systems.named_symbolic_system import PortMap
@@ -58,10 +57,9 @@ from maskless.systems.sensing.depth_sensor import add_depth_sensor
 from maskless.systems.sensing.local_kalman_filter import add_local_kalman_filter
 from maskless.systems.sensing.track_fusion import add_track_fusion
 
-# Far beyond any run, so the last reference value holds for the rest of the simulation.
-_REFERENCE_HOLD_S = 1.0e9
-
 PNEUMATIC_PLANT_NAME = "pneumatic_plant"
+# The closed loop's head-height reference (``step_reference``), whose levels a Context can change.
+REFERENCE_NAME = "reference"
 
 
 @dataclass
@@ -113,12 +111,9 @@ class AddedPlant:
     start_height_m: float
 
 
-def make_reference_trajectory(reference: ReferenceConfig, start_height_m: float):
-    """The reference as a zero-order-hold trajectory of absolute heights (m)."""
-    times = [0.0, *reference.step_times_s, _REFERENCE_HOLD_S]
-    heights = [start_height_m] + [start_height_m + o for o in reference.step_offsets_m]
-    heights.append(heights[-1])
-    return PiecewisePolynomial.ZeroOrderHold(times, np.array(heights).reshape(1, -1))
+def reference_levels(reference: ReferenceConfig, start_height_m: float) -> list[float]:
+    """The reference's absolute heights (m): the start, then the height after each step."""
+    return [start_height_m] + [start_height_m + o for o in reference.step_offsets_m]
 
 
 def _add_loggers(builder: DiagramBuilder, logged: dict) -> dict[str, tuple[VectorLogSink, slice]]:
@@ -308,9 +303,11 @@ def export_and_log(
     sensing: SensingChain,
     loop_outputs: dict[str, OutputPort],
     command_period_s: float,
-    record: bool,
+    record: "bool | Collection[str]",
 ) -> dict[str, tuple[VectorLogSink, slice]]:
     """Exports ``loop_outputs`` and every sensing output, and logs each when ``record``.
+
+    ``record`` may also name the outputs to log (a sweep that needs two of them logs no more).
 
     ``loop_outputs`` are the reference, head height and valve currents; each sensing output is
     exported under its namespaced name. Camera frames are logged at their frame period, the rest at
@@ -333,16 +330,21 @@ def export_and_log(
         for name in sensing.sensor_names
         for port in ("distance_m", "valid")
     }
+    if record is not True:
+        unknown = sorted(set(record) - set(exported))
+        if unknown:
+            raise ConfigError(f"no outputs {unknown} to log; the loop exports {sorted(exported)}")
     logged = {
         signal: (port, frame_periods_s.get(signal, command_period_s))
         for signal, port in exported.items()
+        if record is True or signal in record
     }
     return _add_loggers(builder, logged)
 
 
 def build_closed_loop(
     config: Scenario,
-    record: bool = True,
+    record: "bool | Collection[str]" = True,
     nominal: "NominalPneumatic | None" = None,
     plant_context_parameters: Collection[str] = (),
 ) -> ClosedLoop:
@@ -350,7 +352,8 @@ def build_closed_loop(
 
     Args:
         config: a validated Scenario.
-        record: add VectorLogSinks for every recorded signal (the core-speed benchmark omits them).
+        record: add VectorLogSinks for every exported output (the core-speed benchmark omits
+            them), or only for the outputs named.
         nominal: ``NominalPneumatic.of(config)`` when the caller has it already (a Monte Carlo
             over head masses shares one); built here otherwise.
         plant_context_parameters: the pneumatic plant's constants that ``set_plant_parameters``
@@ -372,10 +375,12 @@ def build_closed_loop(
         nominal = NominalPneumatic.of(config)
     plant = add_plant(builder, config, nominal, plant_context_parameters)
     start_height_m = plant.start_height_m
-    reference = builder.AddNamedSystem(
-        "reference",
-        TrajectorySource(make_reference_trajectory(config.reference, start_height_m)),
-    )
+    reference = add_step_reference(
+        builder,
+        config.reference.step_times_s,
+        reference_levels(config.reference, start_height_m),
+        REFERENCE_NAME,
+    ).outputs["reference"]
 
     if isinstance(config.controller, PaperLqg):
         model, design = paper_lqg(paper)
@@ -411,7 +416,7 @@ def build_closed_loop(
         LoopDrive(
             inlet_command,
             outlet_command,
-            reference.get_output_port(),
+            reference,
             model.sample_period_s,
             controller_name,
             controller,

@@ -17,6 +17,7 @@ from pydrake.systems.analysis import Simulator
 
 from maskless.camera_images import CameraFrame
 from maskless.diagrams.closed_loop import (
+    REFERENCE_NAME,
     ClosedLoop,
     Signal,
     build_closed_loop,
@@ -27,6 +28,7 @@ from maskless.diagrams.output_folder import output_file, output_folder
 from maskless.diagrams.run_recording import signal_channels
 from maskless.diagrams.run_summary import summarize, summary_with_timing
 from maskless.diagrams.scenario import Scenario
+from maskless.systems.control.step_reference import set_step_levels
 from maskless.systems.plant.pneumatic_physics import PneumaticParameters
 
 # A long run reports progress after each of this many equal chunks.
@@ -169,6 +171,7 @@ def simulate_loop(
     progress: Callable[[float, float], None] | None = None,
     on_chunk: Callable[[dict[str, Signal], list[CameraFrame]], None] | None = None,
     plant_parameters: PneumaticParameters | None = None,
+    reference_levels_m=None,
     keep_all_frames: bool = True,
 ) -> SimulationRun:
     """Simulates a built loop and collects its logs (see ``simulate`` for the callbacks).
@@ -176,13 +179,17 @@ def simulate_loop(
     It runs for ``scenario.duration_s``, seeded with ``scenario.random_seed``. With
     ``plant_parameters``, the pneumatic plant runs with those constants instead of the built ones
     (``closed_loop.set_plant_parameters``; the loop must be built with them as
-    ``plant_context_parameters``), so a sweep over heads needs one built loop.
+    ``plant_context_parameters``), and with ``reference_levels_m`` (the start height, then the
+    height after each of the loop's steps, m) the reference holds those, so a sweep over patients
+    needs one built loop.
     """
     simulator = Simulator(closed_loop.diagram)
     context = simulator.get_mutable_context()
     closed_loop.diagram.SetRandomContext(context, RandomGenerator(scenario.random_seed))
     if plant_parameters is not None:
         set_plant_parameters(closed_loop.diagram, context, plant_parameters)
+    if reference_levels_m is not None:
+        set_step_levels(closed_loop.diagram, context, REFERENCE_NAME, reference_levels_m)
     frames = closed_loop.frames
     frames.clear()  # a loop simulated again records afresh
     start = time.perf_counter()

@@ -268,4 +268,5 @@ def refuse_out_of_range(prefix: str, config, checks) -> None:
     for in_range, field_name, expected in checks:
         if not in_range:
             value = functools.reduce(getattr, field_name.split("."), config)
-            raise ConfigError(f"{prefix}.{field_name} = {value}: expected {expected}")
+            dotted = f"{prefix}.{field_name}" if prefix else field_name
+            raise ConfigError(f"{dotted} = {value}: expected {expected}")

@@ -1,0 +1,146 @@
+"""A population Monte Carlo's figures per controller, from its rows (``analysis/trial_table.py``).
+
+Every figure is over all trials of a controller, settled or not; a trial whose run failed counts
+against it where a figure needs it (p95 over 1 mm, outside the band) and is counted on its own.
+The median is numpy's; a tail quantile (p90 or p10) is one trial's own value (numpy's
+inverted CDF), so a tail of trials that never settled reads "never" instead of a number
+interpolated with infinity.
+"""
+
+import numpy as np
+
+
+def summarize_population(rows: list[dict], controllers: list[str], tolerance_m: float) -> dict:
+    """Per controller: how many trials, how many failed, and the figures over the rest.
+
+    Args:
+        rows: the table's rows (``trial``, ``controller``, ``reachable``, the metrics in mm).
+        controllers: in the order to report.
+        tolerance_m: the clinical band (m), for the fraction of trials within it.
+
+    Returns:
+        {"tolerance_mm", "per_controller": {controller: figures}}; a figure over no trials is None.
+    """
+    tolerance_mm = tolerance_m * 1e3
+    return {
+        "tolerance_mm": tolerance_mm,
+        "per_controller": {
+            controller: _figures([r for r in rows if r["controller"] == controller], tolerance_mm)
+            for controller in controllers
+        },
+    }
+
+
+def _figures(rows: list[dict], tolerance_mm: float) -> dict:
+    figures = _run_figures(rows, tolerance_mm)
+    # The same, over the trials whose drawn plant can hold both reference levels at all: what a
+    # controller could have done.
+    reachable = _run_figures([r for r in rows if r["reachable"]], tolerance_mm)
+    figures["reachable_targets_only"] = {
+        key: reachable[key]
+        for key in (
+            "trials",
+            "p95_within_tolerance_fraction",
+            "p95_abs_error_mm",
+            "time_within_tolerance_fraction",
+        )
+    }
+    return figures
+
+
+def _run_figures(rows: list[dict], tolerance_mm: float) -> dict:
+    ran = [r for r in rows if not r["error"]]
+    p95 = _column(ran, "p95_abs_error_mm")
+    within = _column(ran, "time_within_tolerance_fraction")
+    settle = np.array([np.inf if r["settle_time_s"] is None else r["settle_time_s"] for r in ran])
+    failed = len(rows) - len(ran)
+    return {
+        "trials": len(rows),
+        "failed": failed,
+        "unreachable_targets": sum(not r["reachable"] for r in rows),
+        # A failed run counts as a trial over the bar: the bar is met by runs, not by their absence.
+        "p95_within_tolerance_fraction": _share(p95 <= tolerance_mm, failed),
+        "p95_abs_error_mm": _spread(p95, high=True),
+        "max_abs_error_mm": _spread(_column(ran, "max_abs_error_mm"), high=True),
+        "rms_error_mm": _spread(_column(ran, "rms_error_mm"), high=True),
+        "time_within_tolerance_fraction": _spread(within, high=False),
+        "settled_fraction": _share(np.isfinite(settle), failed),
+        "settle_time_s": _spread(settle, high=True),
+        "overshoot_mm": _spread(_column(ran, "overshoot_mm", missing=0.0), high=True),
+    }
+
+
+def _column(rows: list[dict], name: str, missing: float = np.nan) -> np.ndarray:
+    return np.array([missing if r[name] is None else r[name] for r in rows], dtype=float)
+
+
+def _share(flags: np.ndarray, failed: int) -> float | None:
+    total = flags.size + failed
+    return float(np.sum(flags) / total) if total else None
+
+
+def _spread(values: np.ndarray, high: bool) -> dict:
+    """Median, the tail quantile on the bad side (p90 or p10) and the worst; inf reads None."""
+    if values.size == 0:
+        return {"median": None, "p90" if high else "p10": None, "worst": None}
+    tail = np.quantile(values, 0.9 if high else 0.1, method="inverted_cdf")
+    worst = values.max() if high else values.min()
+    return {
+        "median": _finite(np.median(values)),
+        "p90" if high else "p10": _finite(tail),
+        "worst": _finite(worst),
+    }
+
+
+def _finite(value) -> float | None:
+    return float(value) if np.isfinite(value) else None
+
+
+def summary_table(summary: dict) -> str:
+    """The summary as a text table, one column per controller (what the CLI prints)."""
+    per = summary["per_controller"]
+    tolerance = summary["tolerance_mm"]
+    lines = [
+        ("trials (failed; target out of the drawn plant's reach)", _trials_cell),
+        (
+            f"trials with p95 within ±{tolerance:g} mm",
+            lambda f: _percent(f["p95_within_tolerance_fraction"]),
+        ),
+        ("p95 |error| median / p90 / worst (mm)", lambda f: _triple(f["p95_abs_error_mm"], "p90")),
+        ("max |error| median / p90 / worst (mm)", lambda f: _triple(f["max_abs_error_mm"], "p90")),
+        (
+            f"time within ±{tolerance:g} mm median / p10 / worst",
+            lambda f: _triple(f["time_within_tolerance_fraction"], "p10", percent=True),
+        ),
+        ("settled at the end", lambda f: _percent(f["settled_fraction"])),
+        (
+            f"reachable targets only: p95 within ±{tolerance:g} mm",
+            lambda f: _percent(f["reachable_targets_only"]["p95_within_tolerance_fraction"]),
+        ),
+        ("settle time median / p90 / worst (s)", lambda f: _triple(f["settle_time_s"], "p90")),
+        ("overshoot median / p90 / worst (mm)", lambda f: _triple(f["overshoot_mm"], "p90")),
+    ]
+    width = max(len(label) for label, _ in lines)
+    header = " " * width + "".join(f"  {name:>22}" for name in per)
+    body = [
+        f"{label:<{width}}" + "".join(f"  {cell(figures):>22}" for figures in per.values())
+        for label, cell in lines
+    ]
+    return "\n".join([header, *body])
+
+
+def _trials_cell(figures: dict) -> str:
+    return f"{figures['trials']} ({figures['failed']}; {figures['unreachable_targets']})"
+
+
+def _percent(value: float | None) -> str:
+    return "n/a" if value is None else f"{100 * value:.1f} %"
+
+
+def _triple(spread: dict, tail: str, percent: bool = False) -> str:
+    def cell(value):
+        if value is None:
+            return "never" if not percent else "n/a"
+        return f"{100 * value:.0f}%" if percent else f"{value:.2f}"
+
+    return " / ".join(cell(spread[key]) for key in ("median", tail, "worst"))

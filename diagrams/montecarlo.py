@@ -1,0 +1,440 @@
+"""The population Monte Carlo: trials on a local process pool or a Dask cluster, rows on disk.
+
+``run_sweep(SweepRequest(...))`` is ``maskless montecarlo``. Each trial draws a patient
+(``population``) and runs it once per controller; each (trial, controller) is a row of
+``OUT/trials.csv``: the draws, the seed and the tracking metrics, judged over the fixed window
+from ``scenario.metrics.evaluation_delay_s`` after the judged step to the end (the definitions of
+``maskless simulate``, ``analysis/metrics.py``). ``OUT/summary.json`` and ``OUT/population.png``
+(CDFs, the worst trials' traces) follow from the table.
+
+- **Engines.** A local process pool of every core by default. With a scheduler address, a Dask
+  distributed cluster runs the same function: Dask rather than Ray because it is pure Python
+  (two small wheels, no object store or raylet daemons), its ``LocalCluster`` starts in a second
+  or two inside a test, and its workers can be started by hand on any machine that has maskless
+  (``dask scheduler``, ``dask worker ADDRESS``).
+- **One Diagram per controller per process.** A worker builds each controller's loop once, with
+  the plant's constants and the reference's levels as Context parameters, and writes each trial's
+  into a fresh Context (``simulate_loop``): nothing is rebuilt per trial.
+- **The same rows anywhere.** Trial k draws from its own seed (``population.draw_patient``) and
+  runs in a fresh Context, so a row does not depend on the worker, the order or the engine; the
+  finished table is sorted by trial and controller, so the file itself is the same.
+- **Streaming and resuming.** Rows are appended and flushed as trials finish, and at most a few
+  trials per worker are in flight, so memory stays flat however many trials there are. Run again
+  into the same folder, a sweep of the same configuration skips the trials already in its table
+  (a larger ``--trials`` adds the rest); a different configuration is refused, not mixed in.
+"""
+
+import concurrent.futures
+import dataclasses
+import hashlib
+import itertools
+import json
+import multiprocessing
+import os
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from maskless.analysis.metrics import tracking_metrics
+from maskless.analysis.trial_table import TrialTableWriter, read_trial_rows, write_trial_table
+from maskless.diagrams.closed_loop import ClosedLoop, build_closed_loop, reference_levels
+from maskless.diagrams.controller_design import NominalPneumatic
+from maskless.diagrams.output_folder import output_folder
+from maskless.diagrams.population import (
+    MonteCarloConfig,
+    Patient,
+    draw_patient,
+    nominal_lift_window_m,
+    patient_plant,
+    patient_reach,
+    sweep_scenario,
+)
+from maskless.diagrams.scenario import controller_from_shorthand
+from maskless.diagrams.simulation import simulate_loop
+from maskless.errors import ConfigError
+from maskless.systems.plant.pneumatic_plant import SWEPT_PARAMETERS
+from maskless.systems.units import m_to_mm
+
+PATIENT_COLUMNS = tuple(f.name for f in dataclasses.fields(Patient))
+METRIC_COLUMNS = (
+    "settled",
+    "settle_time_s",
+    "p95_abs_error_mm",
+    "max_abs_error_mm",
+    "rms_error_mm",
+    "time_within_tolerance_fraction",
+    "overshoot_mm",
+    "final_error_mm",
+)
+ROW_COLUMNS = (
+    "trial",
+    "controller",
+    *PATIENT_COLUMNS[1:],
+    "reachable",
+    *METRIC_COLUMNS,
+    "error",
+)
+"""A row: the trial, the controller, the draws, whether the drawn plant can reach both reference
+levels, the metrics (mm and s) and, for a trial that failed, why (empty otherwise)."""
+
+TABLE_NAME, SUMMARY_NAME, PLOT_NAME = "trials.csv", "summary.json", "population.png"
+RECORD_NAME, CONFIG_NAME = "sweep.json", "population.yaml"
+# The two signals a trial's metrics need; logging nothing else keeps each run cheap.
+_LOGGED = ("head_height_m", "reference_head_height_m")
+# Trials handed to the engine ahead of those finished, per worker: enough to keep every worker
+# busy, few enough that a sweep of any length holds only a handful in memory.
+_IN_FLIGHT_PER_WORKER = 4
+
+
+class TrialRunner:
+    """Runs one sweep's trials: one built loop per controller, reused for every trial.
+
+    Args:
+        config: the sweep (validated, ``population.load_population``).
+    """
+
+    def __init__(self, config: MonteCarloConfig):
+        """Prepares what every trial shares; the loops are built on first use."""
+        self.config = config
+        self.nominal = NominalPneumatic.of(config.scenario)
+        self.lift_window_m = nominal_lift_window_m(config)
+        self._loops: dict[str, ClosedLoop] = {}
+
+    def loop(self, controller: str) -> ClosedLoop:
+        """The built loop of ``controller`` (built once)."""
+        if controller not in self._loops:
+            scenario = sweep_scenario(self.config, levels_m=(0.0, 0.0))
+            scenario.controller = controller_from_shorthand(controller)
+            self._loops[controller] = build_closed_loop(
+                scenario,
+                record=_LOGGED,
+                nominal=self.nominal,
+                plant_context_parameters=SWEPT_PARAMETERS,
+            )
+        return self._loops[controller]
+
+    def patient(self, trial: int) -> Patient:
+        """Trial ``trial``'s draws."""
+        return draw_patient(self.config, trial, self.lift_window_m)
+
+    def simulate(self, patient: Patient, controller: str):
+        """The run of ``patient`` with ``controller`` (a ``SimulationRun``)."""
+        loop = self.loop(controller)
+        scenario = sweep_scenario(
+            self.config,
+            patient.reference_offsets_m(self.config.scenario.start_lift_m),
+            seed=patient.seed,
+        )
+        return simulate_loop(
+            loop,
+            scenario,
+            plant_parameters=patient_plant(self.nominal.parameters, patient),
+            reference_levels_m=reference_levels(scenario.reference, loop.start_height_m),
+        )
+
+    def rows(self, trial: int) -> list[dict]:
+        """Trial ``trial``'s rows, one per controller; a run that fails gives a row naming why."""
+        patient = self.patient(trial)
+        drawn = dataclasses.asdict(patient)
+        lowest, highest = patient_reach(self.nominal.parameters, patient)
+        start = patient.positioned_lift_m
+        reachable = all(lowest <= lift <= highest for lift in (start, start + patient.step_m))
+        rows = []
+        for controller in self.config.controllers:
+            row = {**drawn, "controller": controller, "reachable": reachable, "error": None}
+            try:
+                row.update(self._metrics(patient, controller))
+            except Exception as error:  # noqa: BLE001 (a failed trial is a row, named loudly)
+                row.update(dict.fromkeys(METRIC_COLUMNS))
+                row["error"] = f"{type(error).__name__}: {error}"
+            rows.append(row)
+        return rows
+
+    def _metrics(self, patient: Patient, controller: str) -> dict:
+        run = self.simulate(patient, controller)
+        head = run.signals["head_height_m"]
+        metrics = tracking_metrics(
+            head.times_s,
+            head.values[0],
+            run.signals["reference_head_height_m"].values[0],
+            last_step_time_s=self.config.step_time_s,
+            tolerance_m=self.config.scenario.metrics.tolerance_m,
+            evaluation_delay_s=self.config.scenario.metrics.evaluation_delay_s,
+        )
+        if not np.all(np.isfinite(head.values)):
+            raise FloatingPointError("the head height went non-finite")
+        return {
+            "settled": metrics.settled,
+            "settle_time_s": metrics.settle_time_s,
+            "p95_abs_error_mm": _mm(metrics.p95_abs_error_m),
+            "max_abs_error_mm": _mm(metrics.max_abs_error_m),
+            "rms_error_mm": _mm(metrics.rms_error_m),
+            "time_within_tolerance_fraction": metrics.time_within_tolerance_fraction,
+            "overshoot_mm": _mm(metrics.overshoot_m),
+            "final_error_mm": _mm(metrics.final_error_m),
+        }
+
+    def error_trace_mm(self, trial: int, controller: str) -> tuple[np.ndarray, np.ndarray]:
+        """(time from the judged step (s), head - reference (mm)) of one trial, re-run."""
+        run = self.simulate(self.patient(trial), controller)
+        head = run.signals["head_height_m"]
+        error = head.values[0] - run.signals["reference_head_height_m"].values[0]
+        return head.times_s - self.config.step_time_s, m_to_mm(error)
+
+
+def _mm(value_m: float | None) -> float | None:
+    return None if value_m is None else float(m_to_mm(value_m))
+
+
+def fingerprint(config: MonteCarloConfig) -> str:
+    """What identifies a sweep's rows: everything in its configuration but the trial count."""
+    text = repr(dataclasses.replace(config, trials=0, worst_traces=0))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+# One TrialRunner per sweep per process: a worker builds its loops for the first trial it gets.
+_RUNNERS: dict[str, TrialRunner] = {}
+
+
+def trial_rows(config: MonteCarloConfig, key: str, trial: int) -> list[dict]:
+    """Trial ``trial``'s rows, on whichever process runs it (``key``: ``fingerprint(config)``)."""
+    if key not in _RUNNERS:
+        _RUNNERS[key] = TrialRunner(config)
+    return _RUNNERS[key].rows(trial)
+
+
+@dataclass(frozen=True)
+class SweepRequest:
+    """What ``maskless montecarlo`` runs.
+
+    Attributes:
+        config: the sweep (``population.load_population``); ``config.trials`` trials.
+        out: the folder of the table, summary and plot.
+        workers: local processes (None: one per core; 1 runs in this process).
+        scheduler: a Dask scheduler's address (``tcp://host:8786``); the cluster's workers run
+            the trials instead of a local pool.
+        restart: discard the rows of an earlier sweep in ``out`` instead of resuming it.
+        progress: show a progress bar on stderr.
+    """
+
+    config: MonteCarloConfig
+    out: Path
+    workers: int | None = None
+    scheduler: str | None = None
+    restart: bool = False
+    progress: bool = True
+
+
+def run_sweep(request: SweepRequest) -> dict:
+    """Runs the trials not yet in ``request.out``'s table; writes the table, summary and plot.
+
+    Returns:
+        The summary (``summary.json``'s content): per controller, the figures over all trials.
+
+    Raises:
+        ConfigError: the folder holds a sweep of another configuration (and no ``restart``), or
+            ``workers`` is not positive.
+    """
+    from maskless.analysis.population_summary import summarize_population
+
+    config = request.config
+    if request.workers is not None and request.workers < 1:
+        raise ConfigError(f"workers = {request.workers}: expected at least 1")
+    out = output_folder(request.out)
+    table = out / TABLE_NAME
+    key = fingerprint(config)
+    _claim_folder(out, config, key, request.restart)
+    done = _finished_trials(table, config.controllers)
+    todo = [trial for trial in range(config.trials) if trial not in done]
+    workers = request.workers or os.cpu_count() or 1
+    start = time.perf_counter()
+    with TrialTableWriter(table, ROW_COLUMNS) as writer, _progress_bar(request, todo) as bar:
+        for rows in _engine_results(request, key, todo, workers):
+            for row in rows:
+                writer.append(row)
+            bar.update(1)
+    wall_s = time.perf_counter() - start
+    _, rows = read_trial_rows(table)
+    rows = _sorted_rows(rows, config.controllers, config.trials)
+    write_trial_table(table, ROW_COLUMNS, rows)
+    summary = summarize_population(rows, config.controllers, config.scenario.metrics.tolerance_m)
+    summary["sweep"] = {
+        "trials": config.trials,
+        "run_now": len(todo),
+        "resumed": config.trials - len(todo),
+        "engine": f"dask {request.scheduler}" if request.scheduler else "local process pool",
+        "workers": None if request.scheduler else workers,
+        "wall_time_s": wall_s,
+        "simulated_s_per_trial": config.scenario.duration_s,
+    }
+    summary["files"] = {name: str(out / name) for name in (TABLE_NAME, SUMMARY_NAME, PLOT_NAME)}
+    _plot(out / PLOT_NAME, config, rows)
+    (out / SUMMARY_NAME).write_text(json.dumps(summary, indent=2) + "\n")
+    return summary
+
+
+def _claim_folder(out: Path, config: MonteCarloConfig, key: str, restart: bool) -> None:
+    """Records the sweep in ``out``, or refuses a folder that holds another sweep's rows."""
+    from pydrake.common.yaml import yaml_dump_typed
+
+    record = out / RECORD_NAME
+    table = out / TABLE_NAME
+    if record.exists() and table.exists() and not restart:
+        found = json.loads(record.read_text()).get("fingerprint")
+        if found != key:
+            raise ConfigError(
+                f"{out}: holds the rows of a sweep of another configuration ({out / CONFIG_NAME});"
+                " use another --out, or --restart to discard them"
+            )
+        return
+    if restart:
+        table.unlink(missing_ok=True)
+    (out / CONFIG_NAME).write_text(yaml_dump_typed(dataclasses.replace(config, trials=0)))
+    record.write_text(json.dumps({"fingerprint": key, "columns": list(ROW_COLUMNS)}) + "\n")
+
+
+def _finished_trials(table: Path, controllers: list[str]) -> set[int]:
+    """The trials whose every controller has a row in ``table`` (none if there is no table)."""
+    if not table.exists():
+        return set()
+    _, rows = read_trial_rows(table)
+    seen: dict[int, set[str]] = {}
+    for row in rows:
+        seen.setdefault(row["trial"], set()).add(row["controller"])
+    return {trial for trial, found in seen.items() if found >= set(controllers)}
+
+
+def _sorted_rows(rows: list[dict], controllers: list[str], trials: int) -> list[dict]:
+    """One row per (trial, controller) below ``trials``, sorted.
+
+    A trial half-written by a killed sweep and run again appears once.
+    """
+    order = {controller: index for index, controller in enumerate(controllers)}
+    unique = {(row["trial"], row["controller"]): row for row in rows if row["trial"] < trials}
+    return [unique[k] for k in sorted(unique, key=lambda k: (k[0], order.get(k[1], len(order))))]
+
+
+def _engine_results(
+    request: SweepRequest, key: str, trials: list[int], workers: int
+) -> Iterator[list[dict]]:
+    """Each trial's rows as it finishes, from the engine the request picks."""
+    config = request.config
+    if not trials:
+        return iter(())
+    if request.scheduler:
+        return _dask_results(request.scheduler, config, key, trials)
+    if workers == 1:
+        return (trial_rows(config, key, trial) for trial in trials)
+    return _pool_results(config, key, trials, workers)
+
+
+def _pool_results(config, key: str, trials: list[int], workers: int) -> Iterator[list[dict]]:
+    # Spawned, not forked: a fork would copy this process's Drake and threads mid-state.
+    context = multiprocessing.get_context("spawn")
+    with concurrent.futures.ProcessPoolExecutor(
+        workers, mp_context=context, initializer=_exit_with_parent, initargs=(os.getpid(),)
+    ) as pool:
+
+        def first_done(pending):
+            return concurrent.futures.wait(pending, return_when=concurrent.futures.FIRST_COMPLETED)
+
+        yield from _bounded(
+            lambda trial: pool.submit(trial_rows, config, key, trial),
+            first_done,
+            trials,
+            workers * _IN_FLIGHT_PER_WORKER,
+        )
+
+
+def _dask_results(address: str, config, key: str, trials: list[int]) -> Iterator[list[dict]]:
+    from distributed import Client, wait
+
+    try:
+        client = Client(address, timeout=30)
+    except OSError as error:
+        raise ConfigError(f"--scheduler {address}: cannot connect ({error})") from None
+    with client:
+        workers = max(1, len(client.scheduler_info()["workers"]))
+
+        def first_done(pending):
+            return wait(pending, return_when="FIRST_COMPLETED")
+
+        yield from _bounded(
+            lambda trial: client.submit(
+                trial_rows, config, key, trial, key=f"maskless-trial-{key[:12]}-{trial}"
+            ),
+            first_done,
+            trials,
+            workers * _IN_FLIGHT_PER_WORKER,
+        )
+
+
+def _bounded(
+    submit: Callable[[int], object],
+    first_done: Callable[[set], tuple[set, set]],
+    trials: Iterable[int],
+    window: int,
+) -> Iterator[list[dict]]:
+    """Results as they finish, with at most ``window`` trials submitted and not yet collected."""
+    queue = iter(trials)
+    pending = {submit(trial) for trial in itertools.islice(queue, window)}
+    while pending:
+        done, pending = first_done(pending)
+        for future in done:
+            yield future.result()
+            for trial in queue:
+                pending.add(submit(trial))
+                break
+
+
+def _exit_with_parent(parent_pid: int) -> None:
+    """A pool worker ends when the sweep that started it is gone (killed), instead of lingering."""
+
+    def watch():
+        while os.getppid() == parent_pid:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True).start()
+
+
+class _NoBar:
+    def update(self, count: int) -> None:
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info):
+        return False
+
+
+def _progress_bar(request: SweepRequest, todo: list[int]):
+    if not request.progress:
+        return _NoBar()
+    from tqdm import tqdm
+
+    done = request.config.trials - len(todo)
+    return tqdm(
+        total=request.config.trials, initial=done, unit="trial", file=sys.stderr, smoothing=0.1
+    )
+
+
+def _plot(path: Path, config: MonteCarloConfig, rows: list[dict]) -> None:
+    """The CDFs and the worst trials' traces, re-run here (a few runs, deterministic)."""
+    from maskless.analysis.population_plots import plot_population, worst_trials
+
+    runner = TrialRunner(config)
+    traces = {
+        controller: [
+            (trial, *runner.error_trace_mm(trial, controller))
+            for trial in worst_trials(rows, controller, config.worst_traces)
+        ]
+        for controller in config.controllers
+    }
+    plot_population(path, rows, config.controllers, traces, config.scenario.metrics.tolerance_m)

@@ -1,0 +1,358 @@
+"""A population of patients for the Monte Carlo: what each trial draws, and from what.
+
+A population file (``assets/presets/population_*.yaml``, or the user's own) holds the sweep's
+settings, the distributions a patient is drawn from, and the scenario every trial runs (its
+``scenario`` section overrides the shipped defaults, as ``maskless simulate --config`` does).
+
+Each trial draws one patient: a head mass, the bladder's stiffness and leak, both valves'
+conductances and the supply pressure (each uniform between its low and high; a factor multiplies
+the scenario's nominal value), and a reference: the head is first positioned at a drawn lift,
+then stepped by a drawn size, up or down. Both levels lie inside the nominal plant's working
+range (``lift_margin_m`` above zero lift, and no higher than the lift the nominal inlet holds at
+``inlet_authority_fraction`` of its span). Whether the drawn patient can reach them is computed
+from the drawn plant (``patient_reach``) and reported beside the metrics: a heavy head on a soft
+bladder may sit too low for a target near the top. The controller is designed on the nominal plant
+and never sees the draw.
+
+Trial k's draws come from ``SeedSequence([seed, k])`` alone, so a trial gives the same patient and
+noise whichever worker runs it, in whatever order, and a sweep that grows or resumes redraws none.
+"""
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from maskless.diagrams.scenario import (
+    PneumaticPlant,
+    Scenario,
+    controller_from_shorthand,
+    default_scenario,
+    validate_scenario,
+)
+from maskless.errors import ConfigError, MissingFileError
+from maskless.systems.config_loading import UNSET, asset_path, load_config, refuse_out_of_range
+from maskless.systems.plant.pneumatic_design import steady_lift_curve
+from maskless.systems.plant.pneumatic_physics import PneumaticParameters
+from maskless.systems.plant.pneumatic_plant import steady_gauge_pressure_pa, steady_lift_m
+
+PRESET_PREFIX = "population_"
+
+
+@dataclass
+class UniformRange:
+    """A quantity drawn uniformly between ``low`` and ``high`` (equal: not drawn at all)."""
+
+    low: float = UNSET
+    high: float = UNSET
+
+    def draw(self, rng: np.random.Generator) -> float:
+        """One draw; a fixed value (low == high) still consumes one, so later draws keep theirs."""
+        return float(rng.uniform(self.low, self.high))
+
+
+@dataclass
+class PopulationConfig:
+    """The distributions a patient is drawn from.
+
+    Attributes:
+        head_mass_kg: the head's mass (kg).
+        stiffness_factor: times the scenario's ``pneumatic.stiffness_n_m``.
+        leak_factor: times its ``pneumatic.leak_sonic_conductance_m3_s_pa``.
+        inlet_conductance_factor: times its ``pneumatic.inlet.sonic_conductance_m3_s_pa``.
+        outlet_conductance_factor: times its ``pneumatic.outlet.sonic_conductance_m3_s_pa``.
+        supply_gauge_pressure_pa: the compressor's regulated supply (Pa, gauge).
+        step_size_m: the size of the judged step (m); up or down with equal chance.
+        lift_margin_m: both reference levels lie at least this far above zero lift (m).
+        inlet_authority_fraction: ...and no higher than the lift the nominal inlet holds at this
+            fraction of its current span.
+    """
+
+    head_mass_kg: UniformRange = field(default_factory=UniformRange)
+    stiffness_factor: UniformRange = field(default_factory=UniformRange)
+    leak_factor: UniformRange = field(default_factory=UniformRange)
+    inlet_conductance_factor: UniformRange = field(default_factory=UniformRange)
+    outlet_conductance_factor: UniformRange = field(default_factory=UniformRange)
+    supply_gauge_pressure_pa: UniformRange = field(default_factory=UniformRange)
+    step_size_m: UniformRange = field(default_factory=UniformRange)
+    lift_margin_m: float = UNSET
+    inlet_authority_fraction: float = UNSET
+
+
+@dataclass
+class MonteCarloConfig:
+    """A sweep: how many trials, which controllers, the population and the scenario.
+
+    Attributes:
+        trials: patients drawn (``--trials`` overrides); each runs once per controller.
+        seed: the population's seed; trial k draws from ``SeedSequence([seed, k])``.
+        controllers: each trial runs with each of these (``--controller`` shorthands:
+            ``offset-free-lqg``, ``paper-lqg``, ``offset-free-lqg:MODEL.yaml``).
+        positioning_time_s: when the reference moves the head to the drawn starting lift (s).
+        step_time_s: when the judged step happens (s); tracking is judged from
+            ``scenario.metrics.evaluation_delay_s`` after it to ``scenario.duration_s``.
+        worst_traces: how many of each controller's worst trials (by p95 error) the plot shows.
+        scenario_presets: shipped scenario presets (``assets/presets/NAME.yaml``, such as
+            ``paper_camera_noise``) applied in order over the shipped defaults, under
+            ``scenario``.
+        population: the distributions.
+        scenario: what every trial runs, over the shipped defaults and ``scenario_presets``; its
+            reference is the sweep's (set per trial), its plant must be the pneumatic one.
+    """
+
+    trials: int = 0
+    seed: int = 0
+    controllers: list[str] = field(default_factory=list)
+    positioning_time_s: float = UNSET
+    step_time_s: float = UNSET
+    worst_traces: int = 5
+    scenario_presets: list[str] = field(default_factory=list)
+    population: PopulationConfig = field(default_factory=PopulationConfig)
+    scenario: Scenario = field(default_factory=Scenario)
+
+
+def preset_names() -> list[str]:
+    """The shipped population presets (``--preset NAME``)."""
+    folder = asset_path("presets/paper_camera_noise.yaml").parent
+    return sorted(p.stem.removeprefix(PRESET_PREFIX) for p in folder.glob(f"{PRESET_PREFIX}*.yaml"))
+
+
+def preset_path(name: str) -> Path:
+    """The file of the shipped population preset ``name``.
+
+    Raises:
+        ConfigError: no preset has that name (the message lists those that do).
+    """
+    try:
+        return asset_path(f"presets/{PRESET_PREFIX}{name}.yaml")
+    except FileNotFoundError:
+        raise ConfigError(
+            f"no population preset {name!r}; shipped: {', '.join(preset_names())}"
+        ) from None
+
+
+def scenario_preset_path(name: str) -> Path:
+    """The file of the shipped scenario preset ``name`` (``assets/presets/NAME.yaml``).
+
+    Raises:
+        ConfigError: no scenario preset has that name (the message lists those that do).
+    """
+    folder = asset_path("presets/paper_camera_noise.yaml").parent
+    path = folder / f"{name}.yaml"
+    if name.startswith(PRESET_PREFIX) or not path.is_file():
+        shipped = sorted(
+            p.stem for p in folder.glob("*.yaml") if not p.stem.startswith(PRESET_PREFIX)
+        )
+        raise ConfigError(f"scenario_presets: no preset {name!r}; shipped: {', '.join(shipped)}")
+    return path
+
+
+def load_population(path: str | Path) -> MonteCarloConfig:
+    """A population file over the shipped scenario defaults, validated.
+
+    Raises:
+        ConfigError: an unknown, mistyped or out-of-range field (named with the file).
+        MissingFileError: ``path`` does not exist.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise MissingFileError(f"population file not found: {path}")
+    # Read once for the presets its scenario builds on, then again over them.
+    config = load_config(
+        MonteCarloConfig, path, defaults=MonteCarloConfig(scenario=default_scenario())
+    )
+    try:
+        if config.scenario_presets:
+            scenario = default_scenario()
+            for name in config.scenario_presets:
+                scenario = load_config(Scenario, scenario_preset_path(name), defaults=scenario)
+            defaults = MonteCarloConfig(scenario=scenario)
+            config = load_config(MonteCarloConfig, path, defaults=defaults)
+        validate_population(config)
+    except ConfigError as error:
+        raise ConfigError(f"{path}: {error}") from error
+    return config
+
+
+def validate_population(config: MonteCarloConfig) -> None:
+    """Raises ConfigError naming the first field that is unset or out of range."""
+    refuse_out_of_range("", config, _sweep_checks(config))
+    validate_scenario(sweep_scenario(config, levels_m=(0.0, 0.0)))
+    if not isinstance(config.scenario.plant, PneumaticPlant):
+        raise ConfigError(
+            "scenario.plant: expected !PneumaticPlant (the population draws its heads)"
+        )
+    for name in config.controllers:
+        try:
+            controller_from_shorthand(name)
+        except ConfigError as error:
+            raise ConfigError(f"controllers: {error}") from error
+    for name, draw in _ranges(config.population):
+        refuse_out_of_range(
+            f"population.{name}",
+            draw,
+            [(0 < draw.low <= draw.high, "low", f"0 < low <= high ({draw.high})")],
+        )
+    refuse_out_of_range(
+        "population",
+        config.population,
+        [
+            (config.population.lift_margin_m >= 0, "lift_margin_m", "a margin >= 0"),
+            (
+                0 < config.population.inlet_authority_fraction <= 1,
+                "inlet_authority_fraction",
+                "a fraction in (0, 1]",
+            ),
+        ],
+    )
+
+
+def _sweep_checks(config: MonteCarloConfig):
+    """(in range, field, expected) for the sweep's own settings (lazily, in order)."""
+    yield config.trials >= 0, "trials", "a count >= 0"
+    yield 0 <= config.seed < 2**32, "seed", "a seed in [0, 2^32)"
+    yield len(config.controllers) > 0, "controllers", "at least one controller"
+    yield (
+        len(set(config.controllers)) == len(config.controllers),
+        "controllers",
+        "no controller twice",
+    )
+    yield config.positioning_time_s >= 0, "positioning_time_s", "a time >= 0"
+    yield config.step_time_s > config.positioning_time_s, "step_time_s", "after positioning_time_s"
+    window_start_s = config.step_time_s + config.scenario.metrics.evaluation_delay_s
+    yield (
+        window_start_s < config.scenario.duration_s,
+        "step_time_s",
+        f"a step judged before the run ends: step_time_s + evaluation delay ({window_start_s} s) "
+        f"< scenario.duration_s ({config.scenario.duration_s} s)",
+    )
+    yield config.worst_traces >= 0, "worst_traces", "a count >= 0"
+
+
+def _ranges(population: PopulationConfig):
+    return [(f.name, getattr(population, f.name)) for f in dataclasses.fields(population)][:7]
+
+
+def sweep_scenario(config: MonteCarloConfig, levels_m, seed: int | None = None) -> Scenario:
+    """The scenario a trial runs: the population's, its reference the sweep's two steps.
+
+    ``levels_m`` are the two reference offsets from the start (positioned, then stepped); a built
+    loop's levels are rewritten per trial, so any two values build the same Diagram.
+    """
+    return dataclasses.replace(
+        config.scenario,
+        random_seed=config.scenario.random_seed if seed is None else seed,
+        reference=dataclasses.replace(
+            config.scenario.reference,
+            step_times_s=[config.positioning_time_s, config.step_time_s],
+            step_offsets_m=list(levels_m),
+        ),
+    )
+
+
+@dataclass(frozen=True)
+class Patient:
+    """One trial's draws.
+
+    Attributes:
+        trial: the trial's index.
+        seed: the simulation's seed (every noise source of the run).
+        head_mass_kg, stiffness_n_m, leak_sonic_conductance_m3_s_pa,
+        inlet_sonic_conductance_m3_s_pa, outlet_sonic_conductance_m3_s_pa,
+        supply_gauge_pressure_pa: the drawn plant.
+        positioned_lift_m: the lift (of the nominal head) the head is first brought to (m).
+        step_m: the judged step, signed (m).
+    """
+
+    trial: int
+    seed: int
+    head_mass_kg: float
+    stiffness_n_m: float
+    leak_sonic_conductance_m3_s_pa: float
+    inlet_sonic_conductance_m3_s_pa: float
+    outlet_sonic_conductance_m3_s_pa: float
+    supply_gauge_pressure_pa: float
+    positioned_lift_m: float
+    step_m: float
+
+    def reference_offsets_m(self, start_lift_m: float) -> tuple[float, float]:
+        """The reference's two levels relative to the start: positioned, then stepped (m)."""
+        positioned = self.positioned_lift_m - start_lift_m
+        return positioned, positioned + self.step_m
+
+
+def nominal_lift_window_m(config: MonteCarloConfig) -> tuple[float, float]:
+    """The lifts the reference may ask for: (lowest, highest) of the nominal plant (m)."""
+    p = config.scenario.pneumatic
+    currents, lifts = steady_lift_curve(p, num_points=200)
+    top_current = p.inlet.starting_current_a + (
+        config.population.inlet_authority_fraction * p.inlet.current_span_a
+    )
+    return config.population.lift_margin_m, float(np.interp(top_current, currents, lifts))
+
+
+def draw_patient(config: MonteCarloConfig, trial: int, lift_window_m) -> Patient:
+    """Trial ``trial``'s patient (``lift_window_m``: ``nominal_lift_window_m(config)``).
+
+    Raises:
+        ConfigError: the largest step does not fit inside the lift window.
+    """
+    draws, noise = np.random.SeedSequence([config.seed, trial]).spawn(2)
+    rng = np.random.default_rng(draws)
+    population, p = config.population, config.scenario.pneumatic
+    head_mass_kg = population.head_mass_kg.draw(rng)
+    stiffness = population.stiffness_factor.draw(rng) * p.stiffness_n_m
+    leak = population.leak_factor.draw(rng) * p.leak_sonic_conductance_m3_s_pa
+    inlet = population.inlet_conductance_factor.draw(rng) * p.inlet.sonic_conductance_m3_s_pa
+    outlet = population.outlet_conductance_factor.draw(rng) * p.outlet.sonic_conductance_m3_s_pa
+    supply = population.supply_gauge_pressure_pa.draw(rng)
+    step = population.step_size_m.draw(rng) * rng.choice([-1.0, 1.0])
+    low, high = lift_window_m
+    lowest, highest = max(low, low - step), min(high, high - step)
+    if lowest > highest:
+        raise ConfigError(
+            f"population.step_size_m: a {abs(step) * 1e3:.2f} mm step does not fit in the "
+            f"working range of lifts {low * 1e3:.2f}-{high * 1e3:.2f} mm"
+        )
+    return Patient(
+        trial=trial,
+        seed=int(noise.generate_state(1)[0]),
+        head_mass_kg=head_mass_kg,
+        stiffness_n_m=stiffness,
+        leak_sonic_conductance_m3_s_pa=leak,
+        inlet_sonic_conductance_m3_s_pa=inlet,
+        outlet_sonic_conductance_m3_s_pa=outlet,
+        supply_gauge_pressure_pa=supply,
+        positioned_lift_m=float(rng.uniform(lowest, highest)),
+        step_m=float(step),
+    )
+
+
+def patient_plant(nominal: PneumaticParameters, patient: Patient) -> PneumaticParameters:
+    """The nominal plant with the patient's drawn constants."""
+    return dataclasses.replace(
+        nominal,
+        head_mass_kg=patient.head_mass_kg,
+        stiffness_n_m=patient.stiffness_n_m,
+        leak_sonic_conductance_m3_s_pa=patient.leak_sonic_conductance_m3_s_pa,
+        supply_gauge_pressure_pa=patient.supply_gauge_pressure_pa,
+        inlet=dataclasses.replace(
+            nominal.inlet, sonic_conductance_m3_s_pa=patient.inlet_sonic_conductance_m3_s_pa
+        ),
+        outlet=dataclasses.replace(
+            nominal.outlet, sonic_conductance_m3_s_pa=patient.outlet_sonic_conductance_m3_s_pa
+        ),
+    )
+
+
+def patient_reach(nominal: PneumaticParameters, patient: Patient) -> tuple[float, float]:
+    """The lifts (of the nominal head's scale) the drawn plant holds at rest: (lowest, highest).
+
+    Lowest with the outlet fully open and the inlet shut, highest the other way round; a head
+    height of ``rest_head_height_m + lift`` is reachable for a lift between them.
+    """
+    p = patient_plant(nominal, patient)
+    lowest = steady_lift_m(p, steady_gauge_pressure_pa(p, 0.0, 1.0))
+    highest = steady_lift_m(p, steady_gauge_pressure_pa(p, 1.0, 0.0))
+    return lowest, highest

@@ -1,0 +1,246 @@
+"""The population Monte Carlo: rows as `simulate` judges them, the same on every engine, resumed
+after a kill, refused when mixed, and failures named."""
+
+import dataclasses
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from maskless.analysis.trial_table import read_trial_rows
+from maskless.diagrams.cli import main
+from maskless.diagrams.montecarlo import (
+    ROW_COLUMNS,
+    SweepRequest,
+    TrialRunner,
+    fingerprint,
+    run_sweep,
+)
+from maskless.diagrams.population import UniformRange, patient_plant, sweep_scenario
+from maskless.diagrams.scenario import controller_from_shorthand
+from maskless.diagrams.simulation import simulate
+from maskless.errors import ConfigError
+from tests.tiny_population import tiny_population, tiny_population_file
+
+
+def sweep(config, out, **options):
+    return run_sweep(SweepRequest(config=config, out=out, progress=False, **options))
+
+
+def table_bytes(out):
+    return (out / "trials.csv").read_bytes()
+
+
+def test_a_nominal_patients_row_is_what_simulate_reports_for_the_same_run(tmp_path):
+    """One built loop with the trial written into its Context == a loop built for the trial."""
+    config = tiny_population(tmp_path, trials=2)
+    nominal = config.scenario.pneumatic
+    config.population.head_mass_kg = UniformRange(nominal.head_mass_kg, nominal.head_mass_kg)
+    for name in ("stiffness", "leak", "inlet_conductance", "outlet_conductance"):
+        setattr(config.population, f"{name}_factor", UniformRange(1.0, 1.0))
+    supply = nominal.supply_gauge_pressure_pa
+    config.population.supply_gauge_pressure_pa = UniformRange(supply, supply)
+    runner = TrialRunner(config)
+    rows = runner.rows(1)
+    patient = runner.patient(1)
+    for row in rows:
+        scenario = sweep_scenario(
+            config, patient.reference_offsets_m(config.scenario.start_lift_m), seed=patient.seed
+        )
+        scenario.controller = controller_from_shorthand(row["controller"])
+        tracking = simulate(scenario).metrics["tracking"]
+        for name in ("p95_abs_error_mm", "max_abs_error_mm", "overshoot_mm", "final_error_mm"):
+            assert row[name] == pytest.approx(tracking[name], abs=1e-9), name
+        assert row["time_within_tolerance_fraction"] == tracking["time_within_tolerance_fraction"]
+
+
+def test_the_controller_is_designed_on_the_nominal_plant_not_the_drawn_one(tmp_path):
+    config = tiny_population(tmp_path)
+    runner = TrialRunner(config)
+    p = config.scenario.pneumatic
+    assert runner.nominal.parameters == dataclasses.replace(p, head_mass_kg=p.nominal_head_mass_kg)
+    patient = runner.patient(0)
+    assert patient_plant(p, patient) != runner.nominal.parameters
+    runner.rows(0)
+    # Still the same: a trial writes the draw into the plant's Context only.
+    assert runner.nominal.parameters.stiffness_n_m == p.stiffness_n_m
+
+
+def test_one_row_per_trial_and_controller_with_the_draws_and_metrics(tmp_path):
+    config = tiny_population(tmp_path, trials=3)
+    summary = sweep(config, tmp_path / "mc", workers=1)
+    columns, rows = read_trial_rows(tmp_path / "mc" / "trials.csv")
+    assert columns == list(ROW_COLUMNS)
+    assert [(r["trial"], r["controller"]) for r in rows] == [
+        (t, c) for t in range(3) for c in config.controllers
+    ]
+    assert all(r["error"] is None and r["p95_abs_error_mm"] >= 0 for r in rows)
+    assert summary["per_controller"]["offset-free-lqg"]["trials"] == 3
+    assert json.loads((tmp_path / "mc" / "summary.json").read_text()) == summary
+    assert (tmp_path / "mc" / "population.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_the_same_rows_in_process_on_a_local_pool_and_on_a_dask_cluster(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    config = tiny_population(tmp_path)
+    sweep(config, tmp_path / "one", workers=1)
+    sweep(config, tmp_path / "pool", workers=2)
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        summary = sweep(config, tmp_path / "dask", scheduler=cluster.scheduler_address)
+    assert summary["sweep"]["engine"].startswith("dask tcp://")
+    assert table_bytes(tmp_path / "pool") == table_bytes(tmp_path / "one")
+    assert table_bytes(tmp_path / "dask") == table_bytes(tmp_path / "one")
+
+
+def test_a_larger_sweep_into_the_same_folder_runs_only_the_new_trials(tmp_path):
+    config = tiny_population(tmp_path)
+    sweep(dataclasses.replace(config, trials=3), tmp_path / "grown", workers=1)
+    summary = sweep(config, tmp_path / "grown", workers=1)
+    assert (summary["sweep"]["run_now"], summary["sweep"]["resumed"]) == (3, 3)
+    sweep(config, tmp_path / "fresh", workers=1)
+    assert table_bytes(tmp_path / "grown") == table_bytes(tmp_path / "fresh")
+
+
+def test_a_sweep_killed_half_way_finishes_the_rest_only(tmp_path):
+    """SIGKILL the command while its pool works; its workers go too, and a re-run completes."""
+    population = tiny_population_file(tmp_path)
+    config = tiny_population(tmp_path, trials=40)
+    out = tmp_path / "killed"
+    command = [
+        sys.executable,
+        "-m",
+        "maskless.diagrams.cli",
+        "montecarlo",
+        "--population",
+        str(population),
+        "--trials",
+        "40",
+        "--workers",
+        "2",
+        "--out",
+        str(out),
+        "--no-progress",
+    ]
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    table = out / "trials.csv"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        if table.exists() and len(table.read_bytes().splitlines()) > 8:
+            break
+        time.sleep(0.05)
+    children = _children(process.pid)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    _, rows = read_trial_rows(table)
+    finished = len({r["trial"] for r in rows})
+    assert 4 <= finished < 40
+    _wait_gone(children)
+    summary = sweep(config, out, workers=2)
+    assert summary["sweep"]["resumed"] >= finished - 1  # a trial may have only one row on disk
+    assert summary["sweep"]["run_now"] <= 40 - finished + 1
+    sweep(config, tmp_path / "whole", workers=2)
+    assert table_bytes(out) == table_bytes(tmp_path / "whole")
+
+
+def _children(pid: int) -> list[int]:
+    psutil = pytest.importorskip("psutil")
+    return [child.pid for child in psutil.Process(pid).children(recursive=True)]
+
+
+def _wait_gone(pids: list[int], timeout_s: float = 10.0) -> None:
+    """The pool's workers end on their own once their parent is killed."""
+    deadline = time.monotonic() + timeout_s
+    alive = pids
+    while alive and time.monotonic() < deadline:
+        alive = [pid for pid in alive if _running(pid)]
+        time.sleep(0.1)
+    assert not alive, f"workers {alive} outlived the killed sweep"
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    with open(f"/proc/{pid}/stat") as stat:  # a zombie has exited
+        return stat.read().split(") ")[1][0] != "Z"
+
+
+def test_a_folder_of_another_sweep_is_refused_unless_restarted(tmp_path):
+    config = tiny_population(tmp_path, trials=1)
+    sweep(config, tmp_path / "mc", workers=1)
+    other = dataclasses.replace(config, seed=config.seed + 1)
+    assert fingerprint(other) != fingerprint(config)
+    with pytest.raises(ConfigError, match="holds the rows of a sweep of another configuration"):
+        sweep(other, tmp_path / "mc", workers=1)
+    summary = sweep(other, tmp_path / "mc", workers=1, restart=True)
+    assert summary["sweep"]["run_now"] == 1
+    assert fingerprint(dataclasses.replace(config, trials=9, worst_traces=0)) == fingerprint(config)
+
+
+def test_a_failed_run_is_a_row_that_says_why_and_fails_the_command(tmp_path, monkeypatch, capsys):
+    original = TrialRunner.simulate
+
+    def broken(self, patient, controller):
+        if patient.trial == 1 and controller == "paper-lqg":
+            raise RuntimeError("solver diverged")
+        return original(self, patient, controller)
+
+    monkeypatch.setattr(TrialRunner, "simulate", broken)
+    population = tiny_population_file(tmp_path)
+    code = main(
+        [
+            "montecarlo",
+            "--population",
+            str(population),
+            "--trials",
+            "2",
+            "--workers",
+            "1",
+            "--out",
+            str(tmp_path / "mc"),
+            "--no-progress",
+        ]
+    )
+    assert code == 1
+    assert "1 runs failed" in capsys.readouterr().err
+    _, rows = read_trial_rows(tmp_path / "mc" / "trials.csv")
+    failed = [r for r in rows if r["error"]]
+    assert [(r["trial"], r["controller"], r["error"]) for r in failed] == [
+        (1, "paper-lqg", "RuntimeError: solver diverged")
+    ]
+    assert failed[0]["p95_abs_error_mm"] is None
+    summary = json.loads((tmp_path / "mc" / "summary.json").read_text())
+    assert summary["per_controller"]["paper-lqg"]["failed"] == 1
+
+
+def test_the_command_prints_the_summary_and_bad_flags_are_named(tmp_path, capsys):
+    population = tiny_population_file(tmp_path)
+    out = tmp_path / "mc"
+    args = [
+        "montecarlo",
+        "--population",
+        str(population),
+        "--trials",
+        "1",
+        "--workers",
+        "1",
+        "--out",
+        str(out),
+        "--no-progress",
+        "--json",
+    ]
+    assert main(args) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["sweep"]["trials"] == 1
+    with pytest.raises(SystemExit):
+        main(["montecarlo", "--trials", "0"])
+    assert "expected at least 1" in capsys.readouterr().err
+    assert main(["montecarlo", "--preset", "nope", "--out", str(out)]) == 2
+    assert "no population preset 'nope'" in capsys.readouterr().err

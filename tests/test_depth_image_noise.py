@@ -36,17 +36,32 @@ def test_kinect_v1_pixel_noise_is_nguyen_et_al(cameras):
     assert depth.mean() == pytest.approx(z, abs=2e-4)
 
 
-def test_kinect_v2_pixel_noise_is_fankhauser_et_al_with_offset_and_drift(cameras):
+def test_kinect_v2_pixel_noise_is_fankhauser_et_al_with_drift(cameras):
     z = 0.69
     camera = cameras["kinect_v2"]
-    camera.offset_m = 0.002
+    camera.warmup_elapsed_s = 0.0  # the whole 3 mm drift
     depth = kinect_depth_image(np.full(PIXELS, z), camera, 0.0, np.random.default_rng(2))
     sigma = (1.5 - 0.5 * z + 0.3 * z**2) * 1e-3  # Fankhauser et al. 2015, mm -> m
     step = camera.resolution_m
     assert depth.std() == pytest.approx(np.sqrt(sigma**2 + step**2 / 12), rel=0.03)
-    drift = camera.warmup_drift_m * np.exp(-camera.warmup_elapsed_s / camera.warmup_time_constant_s)
-    assert depth.mean() == pytest.approx(z + 0.002 + drift, abs=1e-4)
+    assert depth.mean() == pytest.approx(z + camera.warmup_drift_m, abs=1e-4)
     np.testing.assert_allclose(depth / step, np.round(depth / step), atol=1e-3)  # whole mm
+
+
+@pytest.mark.parametrize("name", ["kinect_v1", "kinect_v2"])
+def test_noise_free_image_carries_the_decaying_warmup_drift(cameras, name):
+    camera = cameras[name]
+    camera.warmup_drift_m, camera.warmup_time_constant_s, camera.warmup_elapsed_s = 0.01, 20.0, 5.0
+    z = 0.83
+    for time_s in (0.0, 7.0, 20.0, 45.0):
+        depth = kinect_depth_image(np.full((3, 3), z), camera, time_s, None)
+        # drift(t) = drift0 exp(-(t + elapsed) / time constant), added before quantisation.
+        drifted = z + 0.01 * np.exp(-(time_s + 5.0) / 20.0)
+        if name == "kinect_v1":  # the nearest 11-bit disparity level
+            expected = 1 / (-0.00307 * np.round((1 / drifted - 3.3309) / -0.00307) + 3.3309)
+        else:  # whole millimetres
+            expected = 0.001 * np.round(drifted / 0.001)
+        np.testing.assert_allclose(depth, np.float32(expected), rtol=0, atol=1e-7)
 
 
 @pytest.mark.parametrize("value", [0.0, np.inf, 0.3, 6.0])

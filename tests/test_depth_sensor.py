@@ -12,11 +12,14 @@ from pydrake.trajectories import PiecewisePolynomial
 from system_harness import port_layout, simulate_with_constant_inputs
 
 from maskless.errors import ConfigError
+from maskless.systems.named_symbolic_system import as_diagram
 from maskless.systems.sensing.depth_sensor import (
     KinectV1Config,
     KinectV2Config,
+    _add_frame_dynamics,
     latency_frames,
     make_depth_sensor,
+    reported_distance_m,
 )
 
 FRAMES = 20000
@@ -29,6 +32,9 @@ SHARED = dict(
     latency_s=1 / RATE_HZ,
     dropout_probability=0.0,
     incidence_angle_rad=0.0,
+    warmup_drift_m=0.0,
+    warmup_time_constant_s=300.0,
+    warmup_elapsed_s=0.0,
 )
 
 
@@ -37,16 +43,27 @@ def v1_config(**changes):
 
 
 def v2_config(**changes):
-    v2_only = dict(
-        min_range_m=0.5,
-        max_range_m=4.5,
-        offset_m=0.0,
-        warmup_drift_m=0.0,
-        warmup_time_constant_s=300.0,
-        warmup_elapsed_s=0.0,
-        resolution_m=0.001,
-    )
+    v2_only = dict(min_range_m=0.5, max_range_m=4.5, resolution_m=0.001)
     return KinectV2Config(**{**SHARED, **v2_only, **changes})
+
+
+CONFIGS = {"kinect_v1": v1_config, "kinect_v2": v2_config}
+
+# A warm-up drift large against the quantisation steps (~2 mm, 1 mm), decaying within the run.
+WARMUP = dict(warmup_drift_m=0.01, warmup_time_constant_s=20.0, warmup_elapsed_s=5.0)
+
+
+def warmup_drift_m(time_s, warmup_drift_m, warmup_time_constant_s, warmup_elapsed_s):
+    """The drift's definition: drift(t) = drift0 exp(-(t + elapsed) / time constant)."""
+    return warmup_drift_m * np.exp(-(time_s + warmup_elapsed_s) / warmup_time_constant_s)
+
+
+def quantised_m(name, distance_m):
+    """The nearest level a noise-free camera reports: an 11-bit disparity (v1) or 1 mm (v2)."""
+    if name == "kinect_v1":
+        disparity = np.round((1 / distance_m - 3.3309) / -0.00307)
+        return 1 / (-0.00307 * disparity + 3.3309)
+    return 0.001 * np.round(distance_m / 0.001)
 
 
 def frames_at(config, distance_m, count=FRAMES, seed=0):
@@ -130,18 +147,36 @@ def test_out_of_range_frames_are_invalid():
     assert not valid.any() and np.all(distance == 0.0)
 
 
-def test_kinect_v2_offset_and_warmup_drift():
-    config = v2_config(
-        offset_m=0.01, warmup_drift_m=0.004, warmup_time_constant_s=20.0, warmup_elapsed_s=0.0
+@pytest.mark.parametrize("name", CONFIGS)
+def test_warmup_drift_is_added_before_quantisation(name):
+    config = CONFIGS[name](**WARMUP)
+    times = np.array([0.0, 7.0, 20.0, 45.0])
+    reported = [reported_distance_m(config, 0.8, 0.0, t) for t in times]
+    expected = quantised_m(name, 0.8 + warmup_drift_m(times, **WARMUP))
+    np.testing.assert_allclose(reported, expected, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", CONFIGS)
+def test_noise_free_frames_follow_the_decaying_warmup_drift(name):
+    config = CONFIGS[name](**WARMUP)
+    period_s = 1 / config.frame_rate_hz
+    # The camera's frame dynamics with a zero noise draw: a noise-free camera of this model.
+    camera = as_diagram("camera", lambda b: _add_frame_dynamics(b, "camera", config, period_s))
+    logs = simulate_with_constant_inputs(
+        camera,
+        {"head_height_m": [config.mount_height_m - 0.8], "standard_normal": [0.0, 0.0]},
+        {"distance_m": period_s, "valid": period_s},
+        duration_s=60.0,
     )
-    distance, _ = frames_at(config, 0.8, count=9000)
-    times = (np.arange(distance.size) + latency_frames(config) + 1) / RATE_HZ
-    late = times > 200  # drift has decayed to 4 mm * exp(-10)
-    assert np.mean(distance[late]) == pytest.approx(0.81, abs=2e-4)
+    times, distance = logs["distance_m"][0], logs["distance_m"][1][0]
+    valid = logs["valid"][1][0] > 0.5
+    assert np.count_nonzero(valid) > 850
     # A frame logged at t was taken one frame earlier.
-    early = (times > 5) & (times < 25)
-    expected_early = 0.81 + np.mean(0.004 * np.exp(-(times[early] - 1 / RATE_HZ) / 20.0))
-    assert np.mean(distance[early]) == pytest.approx(expected_early, abs=3e-4)
+    expected = quantised_m(name, 0.8 + warmup_drift_m(times[valid] - period_s, **WARMUP))
+    np.testing.assert_allclose(distance[valid], expected, rtol=0, atol=1e-12)
+    # The drift decays: early frames read far, late ones the true distance.
+    assert distance[valid][0] - 0.8 > 0.006
+    assert distance[-1] == pytest.approx(quantised_m(name, 0.8), abs=1e-12)
 
 
 def test_latency_in_whole_frames():
@@ -168,6 +203,7 @@ def test_latency_in_whole_frames():
     assert moved == pytest.approx(step_time + 3 / RATE_HZ, abs=1e-9)
 
 
+@pytest.mark.parametrize("name", CONFIGS)
 @pytest.mark.parametrize(
     "changes, field_name",
     [
@@ -176,8 +212,14 @@ def test_latency_in_whole_frames():
         ({"dropout_probability": 1.0}, "dropout_probability"),
         ({"min_range_m": 5.0}, "min_range_m"),
         ({"incidence_angle_rad": 2.0}, "incidence_angle_rad"),
+        ({"warmup_drift_m": math.inf}, "warmup_drift_m"),
+        ({"warmup_drift_m": math.nan}, "warmup_drift_m"),
+        ({"warmup_time_constant_s": 0.0}, "warmup_time_constant_s"),
+        ({"warmup_time_constant_s": math.inf}, "warmup_time_constant_s"),
+        ({"warmup_elapsed_s": -1.0}, "warmup_elapsed_s"),
+        ({"warmup_elapsed_s": math.nan}, "warmup_elapsed_s"),
     ],
 )
-def test_bad_parameters_are_refused_naming_the_field(changes, field_name):
-    with pytest.raises(ConfigError, match=f"kinect_v1.{field_name}"):
-        make_depth_sensor("kinect_v1", v1_config(**changes))
+def test_bad_parameters_are_refused_naming_the_field(name, changes, field_name):
+    with pytest.raises(ConfigError, match=rf"{name}\.{field_name} ="):
+        make_depth_sensor(name, CONFIGS[name](**changes))

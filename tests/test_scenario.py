@@ -95,7 +95,6 @@ cameras:
     incidence_angle_rad: 0.3
     min_range_m: 0.5
     max_range_m: 4.5
-    offset_m: 0.0
     warmup_drift_m: 0.0
     warmup_time_constant_s: 300.0
     warmup_elapsed_s: 1200.0

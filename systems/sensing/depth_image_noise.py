@@ -1,11 +1,11 @@
 """A rendered depth image made to read like a Kinect's: per-pixel noise, quantisation, holes.
 
-Drake renders exact depth. Each pixel then gets the same published axial noise and quantisation the
-measurement model applies to its one distance (``depth_sensor``: Kinect v1 after Nguyen, Izadi,
-Lovell 2012 with 11-bit disparity levels; Kinect v2 after Fankhauser et al. 2015, plus its offset
-and warm-up drift, in whole-millimetre steps), so the two fidelities share one formula. Pixels
-outside the working range, rendered too near or too far, or lost at random
-(``rendering.invalid_pixel_probability``) read 0, as a Kinect reports a pixel it could not measure.
+Drake renders exact depth. Each pixel then gets the same warm-up drift, published axial noise and
+quantisation the measurement model applies to its one distance (``depth_sensor``: Kinect v1 after
+Nguyen, Izadi, Lovell 2012 with 11-bit disparity levels; Kinect v2 after Fankhauser et al. 2015, in
+whole-millimetre steps), so the two fidelities share one formula. Pixels outside the working range,
+rendered too near or too far, or lost at random (``rendering.invalid_pixel_probability``) read 0, as
+a Kinect reports a pixel it could not measure.
 """
 
 import numpy as np
@@ -26,7 +26,7 @@ def kinect_depth_image(
             values for nothing in range (0 too near, inf too far) are allowed.
         config: the camera (its model, working range, noise terms and
             ``rendering.invalid_pixel_probability``).
-        time_s: the frame's simulated time (s), for the Kinect v2's warm-up drift.
+        time_s: the frame's simulated time (s), for the warm-up drift.
         rng: draws the noise and the lost pixels; None for the noise-free image (still quantised
             and range-limited, so it is the image of a perfect camera of this model).
 

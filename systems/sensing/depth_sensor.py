@@ -4,11 +4,11 @@
 true head height above the table in (m); the camera-to-face distance (m) and a validity flag out,
 one frame per frame period.
 
-Each frame: the head height from ``latency`` ago becomes a distance below the camera; published
-axial noise is added (Kinect v1: Nguyen, Izadi, Lovell 2012; Kinect v2: Fankhauser et al. 2015, plus
-a constant offset and a warm-up drift); the distance is quantised (v1: 11-bit disparity, v2: depth
-resolution); a frame outside the working range or dropped (probability ``dropout_probability``, the
-zeros in the authors' logs) reads 0 with ``valid`` = 0, as a Kinect reports invalid pixels.
+Each frame: the head height from ``latency`` ago becomes a distance below the camera; a warm-up
+drift and the published axial noise are added (Kinect v1: Nguyen, Izadi, Lovell 2012; Kinect v2:
+Fankhauser et al. 2015); the distance is quantised (v1: 11-bit disparity, v2: depth resolution); a
+frame outside the working range or dropped (probability ``dropout_probability``, the zeros in the
+authors' logs) reads 0 with ``valid`` = 0, as a Kinect reports invalid pixels.
 """
 
 import math
@@ -93,9 +93,12 @@ class DepthSensorConfig:
         incidence_angle_rad: angle between the camera axis and the face normal (rad).
         min_range_m: nearest valid distance (m).
         max_range_m: farthest valid distance (m).
+        warmup_drift_m: range drift at power-on, decaying exponentially (m).
+        warmup_time_constant_s: time constant of that decay (s).
+        warmup_elapsed_s: how long the camera has been on when the simulation starts (s).
         rendering: whether and how the camera is rendered instead of modelled.
         error: error beyond the per-pixel formulas, added to the measurement
-            (``camera_error``).
+            (``camera_error``); its ``offset_m`` is the offset left after calibration.
     """
 
     mount_height_m: float = UNSET
@@ -105,6 +108,9 @@ class DepthSensorConfig:
     incidence_angle_rad: float = UNSET
     min_range_m: float = UNSET
     max_range_m: float = UNSET
+    warmup_drift_m: float = UNSET
+    warmup_time_constant_s: float = UNSET
+    warmup_elapsed_s: float = UNSET
     rendering: CameraRenderingConfig = field(default_factory=CameraRenderingConfig)
     error: CameraErrorConfig = field(default_factory=CameraErrorConfig)
 
@@ -122,19 +128,11 @@ class KinectV2Config(DepthSensorConfig):
     """Kinect v2 (time of flight).
 
     Attributes:
-        offset_m: constant range offset left after calibration (m).
-        warmup_drift_m: range drift at power-on, decaying exponentially (m).
-        warmup_time_constant_s: time constant of that decay (s).
-        warmup_elapsed_s: how long the camera has been on when the simulation starts (s).
         resolution_m: depth quantisation step (m).
     """
 
     model: ClassVar[str] = "kinect_v2"
 
-    offset_m: float = UNSET
-    warmup_drift_m: float = UNSET
-    warmup_time_constant_s: float = UNSET
-    warmup_elapsed_s: float = UNSET
     resolution_m: float = UNSET
 
 
@@ -158,29 +156,37 @@ def kinect_v1_quantised_distance_m(distance_m):
     return 1.0 / (DISPARITY_SLOPE * level + DISPARITY_INTERCEPT)
 
 
+def warmup_drift(config: DepthSensorConfig, time_s):
+    """The range drift (m) a camera adds at ``time_s``, decaying since it was switched on.
+
+    ``warmup_drift_m`` exp(-(time_s + warmup_elapsed_s) / warmup_time_constant_s); a float or a
+    ``pydrake.symbolic`` expression, as ``time_s`` is.
+    """
+    elapsed_s = time_s + config.warmup_elapsed_s
+    return config.warmup_drift_m * exp_any(-elapsed_s / config.warmup_time_constant_s)
+
+
 def reported_distance_m(config: DepthSensorConfig, distance_m, standard_normal, time_s):
     """The distance a camera reports for a true one and a standard normal draw.
 
-    Kinect v1: the published axial noise, then the nearest 11-bit disparity level. Kinect v2: its
-    offset, warm-up drift and axial noise, then its depth resolution. Floats, numpy arrays (a depth
-    image, ``depth_image_noise``) and ``pydrake.symbolic`` expressions (the measurement model)
-    alike, so both fidelities apply one formula.
+    The warm-up drift and the model's published axial noise are added, then the distance is
+    quantised: Kinect v1 to the nearest 11-bit disparity level, Kinect v2 to its depth resolution.
+    Floats, numpy arrays (a depth image, ``depth_image_noise``) and ``pydrake.symbolic`` expressions
+    (the measurement model) alike, so both fidelities apply one formula.
 
     Args:
         config: the camera.
         distance_m: the true camera-to-face distance (m).
         standard_normal: the noise draw (0 for a noise-free camera).
-        time_s: the time (s), for the Kinect v2's warm-up drift.
+        time_s: the time (s), for the warm-up drift.
     """
+    drifted = distance_m + warmup_drift(config, time_s)
     if isinstance(config, KinectV1Config):
         std = kinect_v1_noise_std_m(distance_m, config.incidence_angle_rad)
-        return kinect_v1_quantised_distance_m(distance_m + std * standard_normal)
+        return kinect_v1_quantised_distance_m(drifted + std * standard_normal)
     if isinstance(config, KinectV2Config):
-        drift = config.warmup_drift_m * exp_any(
-            -(time_s + config.warmup_elapsed_s) / config.warmup_time_constant_s
-        )
         std = kinect_v2_noise_std_m(distance_m, config.incidence_angle_rad)
-        noisy = distance_m + config.offset_m + drift + std * standard_normal
+        noisy = drifted + std * standard_normal
         return config.resolution_m * floor_any(noisy / config.resolution_m + 0.5)
     raise TypeError(f"no camera model for config type {type(config).__name__}")
 
@@ -240,12 +246,14 @@ def _range_checks(config: DepthSensorConfig):
         "0 < min_range_m < max_range_m",
     )
     yield config.mount_height_m > 0, "mount_height_m", "a positive height"
+    yield math.isfinite(config.warmup_drift_m), "warmup_drift_m", "a finite drift"
+    yield (
+        0 < config.warmup_time_constant_s < math.inf,
+        "warmup_time_constant_s",
+        "a positive, finite time constant",
+    )
+    yield 0 <= config.warmup_elapsed_s < math.inf, "warmup_elapsed_s", "a finite time >= 0"
     if isinstance(config, KinectV2Config):
-        yield (
-            config.warmup_time_constant_s > 0,
-            "warmup_time_constant_s",
-            "a positive time constant",
-        )
         yield config.resolution_m > 0, "resolution_m", "a positive step"
     if config.rendering.enabled:
         yield from _rendering_checks(config.rendering)

@@ -92,7 +92,7 @@ def measure_frame(
         last_face: where the face was in the last frame (colour pixels), or None.
         rng: the frame's random stream; None for a perfect camera of this model (no dropped
             frame, no noise, no lost pixel; still quantised and range-limited).
-        time_s: the frame's time (s), for the Kinect v2's warm-up drift.
+        time_s: the frame's time (s), for the warm-up drift.
     """
     if rng is not None and rng.random() < config.dropout_probability:
         return invalid_measurement("frame dropped")

@@ -6,7 +6,7 @@ import numpy as np
 
 
 def worst_trials(rows: list[dict], controller: str, count: int) -> list[int]:
-    """The ``count`` runs of ``controller`` with the largest p95 error (failed runs have no trace)."""
+    """The ``count`` runs of ``controller`` with the largest p95 error (a failed run has none)."""
     ran = [r for r in rows if r["controller"] == controller and not r["error"]]
 
     def badness(row):

@@ -1,5 +1,7 @@
-"""The population Monte Carlo: rows as `simulate` judges them, the same on every engine, resumed
-after a kill, refused when mixed, and failures named."""
+"""The population Monte Carlo: rows as `simulate` judges them, the same on every engine.
+
+Also: resumed after a kill, refused when mixed with another sweep, and failures named.
+"""
 
 import dataclasses
 import json

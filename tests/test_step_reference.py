@@ -1,4 +1,4 @@
-"""The step reference: levels at the right times, rewritable in a Context, refused when malformed."""
+"""The step reference: levels at the right times, rewritable in a Context, malformed refused."""
 
 import numpy as np
 import pytest

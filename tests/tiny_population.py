@@ -1,4 +1,4 @@
-"""A small, short population for the Monte Carlo tests: the standard one, in 14 simulated seconds."""
+"""A small population for the Monte Carlo tests: the standard one, in 14 simulated seconds."""
 
 from pathlib import Path
 

@@ -13,9 +13,9 @@ The public API, one import away::
 
 Every command of the ``maskless`` CLI is one call here: ``simulate`` (`maskless simulate`),
 ``excite`` (`maskless excite`), ``identify_record`` (`maskless identify`),
-``analyze_operating_range`` and ``analyze_stability`` (`maskless analyze`) and ``run_workflow``
-(`maskless workflow`). Errors a user can cause are ``MasklessError``s that name the file, field
-or argument at fault.
+``analyze_operating_range`` and ``analyze_stability`` (`maskless analyze`), ``run_sweep``
+(`maskless montecarlo`) and ``run_workflow`` (`maskless workflow`). Errors a user can cause are
+``MasklessError``s that name the file, field or argument at fault.
 
 Names are imported when first used, so ``import maskless`` stays cheap.
 """
@@ -45,6 +45,13 @@ _EXPORTS = {
     "SimulationRun": "maskless.diagrams.simulation",
     "excite": "maskless.diagrams.excitation_run",
     "ExcitationRequest": "maskless.diagrams.excitation_run",
+    # populations
+    "load_population": "maskless.diagrams.population",
+    "population_preset_path": "maskless.diagrams.population",
+    "MonteCarloConfig": "maskless.diagrams.population",
+    "run_sweep": "maskless.diagrams.montecarlo",
+    "SweepRequest": "maskless.diagrams.montecarlo",
+    "read_trial_rows": "maskless.analysis.trial_table",
     # identification and design
     "identify": "maskless.diagrams.identification_run",
     "identify_record": "maskless.diagrams.identification_run",

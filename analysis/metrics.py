@@ -18,7 +18,7 @@ class TrackingMetrics:
             (None if it ends outside).
         window_start_s, window_end_s: the window the figures below are taken over (s).
         rms_error_m, p95_abs_error_m, max_abs_error_m: |head - reference| over the window (m);
-            None when the run ends before the window starts.
+            None when the run ends before the window has two samples.
         time_within_tolerance_fraction: the fraction of the window's time the head was within
             the band, when a beam could be on (samples are evenly spaced); None as above.
         overshoot_m: largest excursion past the final reference in the step's direction (m); 0 for
@@ -91,7 +91,8 @@ def tracking_metrics(
             float(window.max()),
             float(np.mean(inside[in_window])),
         )
-        if window.size
+        # One sample is no window: a run that ends as its window starts has nothing to judge.
+        if window.size >= 2
         else (None, None, None, None)
     )
 

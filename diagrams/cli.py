@@ -56,6 +56,20 @@ def add_config_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_preset_argument(parser: argparse.ArgumentParser) -> None:
+    """The --preset flag: shipped scenario presets applied before --config."""
+    from maskless.diagrams.scenario import scenario_preset_names
+
+    parser.add_argument(
+        "--preset",
+        action="append",
+        default=None,
+        metavar="NAME",
+        help="a shipped scenario preset applied over the defaults, before --config (repeatable): "
+        + ", ".join(scenario_preset_names()),
+    )
+
+
 def add_sensor_arguments(parser: argparse.ArgumentParser) -> None:
     """The --sensors and --image-rate flags of the commands that run the cameras."""
     parser.add_argument(
@@ -116,7 +130,8 @@ def scenario_from_flags(args: argparse.Namespace, flag_fields: dict[str, str]):
     """The scenario of ``--config`` with the scenario fields the given flags set.
 
     Args:
-        args: the parsed flags; ``args.config`` names the scenario file (or None).
+        args: the parsed flags; ``args.config`` names the scenario file (or None), and
+            ``args.preset``, where the command has it, the shipped presets applied before it.
         flag_fields: flag -> the scenario field it sets (``{"--duration": "duration_s"}``).
             ``--plant`` and ``--controller`` take their shorthands (``identified:MODEL.yaml``).
             ``args.sensors``, when given, renders every camera or none (``--sensors``).
@@ -140,12 +155,13 @@ def scenario_from_flags(args: argparse.Namespace, flag_fields: dict[str, str]):
         overrides[field_name] = parse[flag](value) if flag in parse else value
         labels[field_name] = flag
     sensors = getattr(args, "sensors", None)
+    presets = getattr(args, "preset", None) or ()
     if sensors is not None:
         # --sensors changes every camera the file (and the other flags) configured.
-        cameras = scenario_with_overrides(args.config, overrides, labels).cameras
+        cameras = scenario_with_overrides(args.config, overrides, labels, presets).cameras
         overrides["cameras"] = cameras_measured_by(cameras, rendered=sensors == "rendered")
         labels["cameras"] = "--sensors"
-    return scenario_with_overrides(args.config, overrides, labels)
+    return scenario_with_overrides(args.config, overrides, labels, presets)
 
 
 def build_parser(argv: list[str]) -> argparse.ArgumentParser:

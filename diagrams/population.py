@@ -25,19 +25,19 @@ from pathlib import Path
 import numpy as np
 
 from maskless.diagrams.scenario import (
+    POPULATION_PRESET_PREFIX,
     PneumaticPlant,
     Scenario,
     controller_from_shorthand,
     default_scenario,
     validate_scenario,
+    with_presets,
 )
 from maskless.errors import ConfigError, MissingFileError
 from maskless.systems.config_loading import UNSET, asset_path, load_config, refuse_out_of_range
 from maskless.systems.plant.pneumatic_design import steady_lift_curve
 from maskless.systems.plant.pneumatic_physics import PneumaticParameters
 from maskless.systems.plant.pneumatic_plant import steady_gauge_pressure_pa, steady_lift_m
-
-PRESET_PREFIX = "population_"
 
 
 @dataclass
@@ -115,37 +115,24 @@ class MonteCarloConfig:
 def preset_names() -> list[str]:
     """The shipped population presets (``--preset NAME``)."""
     folder = asset_path("presets/paper_camera_noise.yaml").parent
-    return sorted(p.stem.removeprefix(PRESET_PREFIX) for p in folder.glob(f"{PRESET_PREFIX}*.yaml"))
+    return sorted(
+        p.stem.removeprefix(POPULATION_PRESET_PREFIX)
+        for p in folder.glob(f"{POPULATION_PRESET_PREFIX}*.yaml")
+    )
 
 
-def preset_path(name: str) -> Path:
+def population_preset_path(name: str) -> Path:
     """The file of the shipped population preset ``name``.
 
     Raises:
         ConfigError: no preset has that name (the message lists those that do).
     """
     try:
-        return asset_path(f"presets/{PRESET_PREFIX}{name}.yaml")
+        return asset_path(f"presets/{POPULATION_PRESET_PREFIX}{name}.yaml")
     except FileNotFoundError:
         raise ConfigError(
             f"no population preset {name!r}; shipped: {', '.join(preset_names())}"
         ) from None
-
-
-def scenario_preset_path(name: str) -> Path:
-    """The file of the shipped scenario preset ``name`` (``assets/presets/NAME.yaml``).
-
-    Raises:
-        ConfigError: no scenario preset has that name (the message lists those that do).
-    """
-    folder = asset_path("presets/paper_camera_noise.yaml").parent
-    path = folder / f"{name}.yaml"
-    if name.startswith(PRESET_PREFIX) or not path.is_file():
-        shipped = sorted(
-            p.stem for p in folder.glob("*.yaml") if not p.stem.startswith(PRESET_PREFIX)
-        )
-        raise ConfigError(f"scenario_presets: no preset {name!r}; shipped: {', '.join(shipped)}")
-    return path
 
 
 def load_population(path: str | Path) -> MonteCarloConfig:
@@ -164,11 +151,13 @@ def load_population(path: str | Path) -> MonteCarloConfig:
     )
     try:
         if config.scenario_presets:
-            scenario = default_scenario()
-            for name in config.scenario_presets:
-                scenario = load_config(Scenario, scenario_preset_path(name), defaults=scenario)
-            defaults = MonteCarloConfig(scenario=scenario)
-            config = load_config(MonteCarloConfig, path, defaults=defaults)
+            try:
+                scenario = with_presets(default_scenario(), config.scenario_presets)
+            except ConfigError as error:
+                raise ConfigError(f"scenario_presets: {error}") from error
+            config = load_config(
+                MonteCarloConfig, path, defaults=MonteCarloConfig(scenario=scenario)
+            )
         validate_population(config)
     except ConfigError as error:
         raise ConfigError(f"{path}: {error}") from error

@@ -15,6 +15,7 @@ The command line's shorthands (``--plant identified:MODEL.yaml``) build the same
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -270,13 +271,49 @@ def default_scenario() -> Scenario:
 MAX_RANDOM_SEED = 2**32 - 1
 
 
-def load_scenario(path: str | Path | None = None, **overrides) -> Scenario:
-    """The shipped defaults, overridden by a YAML file and then by ``overrides``, validated once.
+# Shipped scenario presets are assets/presets/NAME.yaml; population files (population.py) share
+# the folder under this prefix.
+POPULATION_PRESET_PREFIX = "population_"
+
+
+def scenario_preset_names() -> list[str]:
+    """The shipped scenario presets (``--preset NAME``), such as ``paper_camera_noise``."""
+    folder = asset_path("presets/paper_camera_noise.yaml").parent
+    return sorted(
+        p.stem for p in folder.glob("*.yaml") if not p.stem.startswith(POPULATION_PRESET_PREFIX)
+    )
+
+
+def scenario_preset_path(name: str) -> Path:
+    """The file of the shipped scenario preset ``name``.
+
+    Raises:
+        ConfigError: no scenario preset has that name (the message lists those that do).
+    """
+    if name not in scenario_preset_names():
+        raise ConfigError(
+            f"no scenario preset {name!r}; shipped: {', '.join(scenario_preset_names())}"
+        )
+    return asset_path(f"presets/{name}.yaml")
+
+
+def with_presets(scenario: Scenario, presets: Sequence[str]) -> Scenario:
+    """``scenario`` with the shipped scenario presets ``presets`` applied over it, in order."""
+    for name in presets:
+        scenario = load_config(Scenario, scenario_preset_path(name), defaults=scenario)
+    return scenario
+
+
+def load_scenario(
+    path: str | Path | None = None, *, presets: Sequence[str] = (), **overrides
+) -> Scenario:
+    """The shipped defaults, then presets, a YAML file and ``overrides``, validated once.
 
     The YAML file is the one at ``path``.
 
     Args:
         path: a scenario YAML file, or None for the shipped defaults.
+        presets: shipped scenario presets (``scenario_preset_names``) applied before the file.
         **overrides: top-level fields to set after the file (``duration_s=30``,
             ``plant=IdentifiedPlant("m.yaml")``); None leaves a field as configured.
 
@@ -285,11 +322,14 @@ def load_scenario(path: str | Path | None = None, **overrides) -> Scenario:
             file (or the overridden fields) and the field, and what was expected.
         MissingFileError: ``path`` does not exist.
     """
-    return scenario_with_overrides(path, overrides, labels={})
+    return scenario_with_overrides(path, overrides, labels={}, presets=presets)
 
 
 def scenario_with_overrides(
-    path: str | Path | None, overrides: dict[str, object], labels: dict[str, str]
+    path: str | Path | None,
+    overrides: dict[str, object],
+    labels: dict[str, str],
+    presets: Sequence[str] = (),
 ) -> Scenario:
     """``load_scenario`` for a caller whose overrides have names of their own.
 
@@ -297,8 +337,9 @@ def scenario_with_overrides(
         path: a scenario YAML file, or None for the shipped defaults.
         overrides: field -> value; None leaves the field as configured.
         labels: field -> what the user called it (a command-line flag), for messages.
+        presets: shipped scenario presets applied before the file.
     """
-    scenario = default_scenario()
+    scenario = with_presets(default_scenario(), presets)
     if path is not None:
         scenario = load_config(Scenario, path, defaults=scenario)
     given = {name: value for name, value in overrides.items() if value is not None}
@@ -312,7 +353,8 @@ def scenario_with_overrides(
     try:
         validate_scenario(scenario)
     except ConfigError as error:
-        sources = [str(path)] if path is not None else []
+        sources = [f"preset {name}" for name in presets]
+        sources += [str(path)] if path is not None else []
         if given:
             names = ", ".join(labels.get(name, name) for name in given)
             sources.append(f"command line ({names})" if labels else f"overrides ({names})")

@@ -12,8 +12,8 @@ from maskless.diagrams.population import (
     nominal_lift_window_m,
     patient_plant,
     patient_reach,
+    population_preset_path,
     preset_names,
-    preset_path,
     sweep_scenario,
 )
 from maskless.diagrams.scenario import load_scenario
@@ -27,13 +27,13 @@ from tests.tiny_population import TINY_POPULATION, tiny_population, tiny_populat
 @pytest.mark.parametrize("name", ["standard", "accuracy"])
 def test_the_shipped_presets_load(name):
     assert name in preset_names()
-    config = load_population(preset_path(name))
+    config = load_population(population_preset_path(name))
     assert config.trials > 0 and config.controllers == ["offset-free-lqg", "paper-lqg"]
 
 
 def test_the_standard_population_is_the_one_the_issue_asks_for():
     """200 patients, 3.5-6.5 kg, +-30 %, 25-35 psi, 2-10 mm, the paper's noise, motion on."""
-    config = load_population(preset_path("standard"))
+    config = load_population(population_preset_path("standard"))
     population = config.population
     assert config.trials == 200
     assert (population.head_mass_kg.low, population.head_mass_kg.high) == (3.5, 6.5)
@@ -52,7 +52,7 @@ def test_the_standard_population_is_the_one_the_issue_asks_for():
 
 def test_an_unknown_preset_lists_the_shipped_ones():
     with pytest.raises(ConfigError, match="no population preset 'nope'; shipped: accuracy"):
-        preset_path("nope")
+        population_preset_path("nope")
 
 
 def test_a_missing_file_is_named(tmp_path):
@@ -74,7 +74,11 @@ def test_a_missing_file_is_named(tmp_path):
             r"tiny.yaml: step_time_s = 9.0: expected a step judged",
         ),
         ("step_time_s: 4.0", "step_time_s: 0.5", "after positioning_time_s"),
-        ("[paper_camera_noise]", "[paper_noise]", "no preset 'paper_noise'; shipped: paper_camera"),
+        (
+            "[paper_camera_noise]",
+            "[paper_noise]",
+            "scenario_presets: no scenario preset 'paper_noise'; shipped: paper",
+        ),
         ("duration_s: 14.0", "duration_s: -1.0", "duration_s"),
         ("inlet_authority_fraction: 0.9", "inlet_authority_fraction: 1.5", "authority_fraction"),
     ],
@@ -164,7 +168,7 @@ def test_the_patients_plant_and_its_reach(tmp_path):
 
 
 def test_a_heavier_head_reaches_less_high():
-    config = load_population(preset_path("accuracy"))
+    config = load_population(population_preset_path("accuracy"))
     nominal = config.scenario.pneumatic
     base = Patient(
         0,

@@ -15,6 +15,7 @@ from maskless.diagrams.scenario import (
 from maskless.diagrams.simulation import simulate
 from maskless.errors import ConfigError
 from maskless.recording import read_recording
+from maskless.systems.config_loading import asset_path
 from maskless.systems.sensing.depth_sensor import KinectV2Config
 
 
@@ -265,3 +266,22 @@ def test_a_rendered_camera_needs_its_rendering_settings_a_modelled_one_does_not(
     path.write_text(THIRD_CAMERA + "    rendering:\n      enabled: true\n")
     with pytest.raises(ConfigError, match=r"cameras\.kinect_v3\.rendering\.image_width_px"):
         load_scenario(path)
+
+
+def test_a_shipped_preset_by_name_is_its_file_applied_before_the_config(tmp_path):
+    from maskless.diagrams.scenario import scenario_preset_names
+
+    assert "paper_camera_noise" in scenario_preset_names()
+    assert not any(name.startswith("population_") for name in scenario_preset_names())
+    by_name = load_scenario(presets=["paper_camera_noise"])
+    by_file = load_scenario(asset_path("presets/paper_camera_noise.yaml"))
+    assert by_name == by_file
+    over = tmp_path / "over.yaml"
+    over.write_text("cameras:\n  kinect_v1:\n    error:\n      white_noise_std_m: 0.001\n")
+    both = load_scenario(over, presets=["paper_camera_noise"])
+    assert both.cameras["kinect_v1"].error.white_noise_std_m == 0.001  # the file wins
+    assert both.cameras["kinect_v2"].error == by_name.cameras["kinect_v2"].error
+    with pytest.raises(
+        ConfigError, match="no scenario preset 'paper'; shipped: paper_camera_noise"
+    ):
+        load_scenario(presets=["paper"])

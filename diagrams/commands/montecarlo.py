@@ -16,7 +16,7 @@ from pathlib import Path
 
 from maskless.diagrams.cli import add_out_argument
 from maskless.diagrams.montecarlo import SweepRequest, run_sweep
-from maskless.diagrams.population import load_population, preset_names, preset_path
+from maskless.diagrams.population import load_population, population_preset_path, preset_names
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -83,7 +83,7 @@ def run_command(args: argparse.Namespace) -> int:
     """`maskless montecarlo`: returns the process exit code (1 when a trial failed)."""
     from maskless.analysis.population_summary import summary_table
 
-    path = args.population or preset_path(args.preset or "standard")
+    path = args.population or population_preset_path(args.preset or "standard")
     config = load_population(path)
     if args.trials is not None:
         config.trials = args.trials

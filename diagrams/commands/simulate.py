@@ -13,6 +13,7 @@ import json
 from maskless.diagrams.cli import (
     add_config_argument,
     add_out_argument,
+    add_preset_argument,
     add_sensor_arguments,
     scenario_from_flags,
 )
@@ -38,6 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_out_argument(parser, "out", "run.mcap and run.png")
     add_config_argument(parser)
+    add_preset_argument(parser)
     add_sensor_arguments(parser)
     parser.add_argument(
         "--plant",

@@ -27,3 +27,7 @@ class ModelError(MasklessError, ValueError):
 
 class MissingFileError(MasklessError, FileNotFoundError):
     """A file the user named does not exist."""
+
+
+class SweepError(MasklessError, RuntimeError):
+    """A population sweep could not finish (a worker died); what it finished is kept."""

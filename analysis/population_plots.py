@@ -16,9 +16,10 @@ def worst_trials(rows: list[dict], controller: str, count: int) -> list[int]:
     return [r["trial"] for r in ranked[:count]]
 
 
-def _cdf(values) -> tuple[np.ndarray, np.ndarray]:
+def _cdf(values, total: int) -> tuple[np.ndarray, np.ndarray]:
+    """The empirical CDF of ``values`` among ``total`` trials (those missing never reach it)."""
     x = np.sort(np.asarray(values, dtype=float))
-    return x, np.arange(1, x.size + 1) / max(x.size, 1)
+    return x, np.arange(1, x.size + 1) / max(total, 1)
 
 
 def plot_population(
@@ -49,15 +50,20 @@ def plot_population(
     p95_axes = figure.add_subplot(grid[0, 0])
     within_axes = figure.add_subplot(grid[0, 1:])
     for controller in controllers:
-        ran = [r for r in rows if r["controller"] == controller and not r["error"]]
+        mine = [r for r in rows if r["controller"] == controller]
+        ran = [r for r in mine if not r["error"]]
+        # A failed run counts: never within the band, and off the p95 curve, which stops short of 1.
+        failed = f", {len(mine) - len(ran)} failed" if len(ran) < len(mine) else ""
         p95 = [max(r["p95_abs_error_mm"], 1e-3) for r in ran if r["p95_abs_error_mm"] is not None]
-        p95_axes.step(*_cdf(p95), where="post", label=f"{controller} ({len(ran)} trials)")
+        p95_axes.step(
+            *_cdf(p95, len(mine)), where="post", label=f"{controller} ({len(mine)} trials{failed})"
+        )
         within = [
-            100 * r["time_within_tolerance_fraction"]
-            for r in ran
-            if r["time_within_tolerance_fraction"] is not None
+            0.0 if r["error"] else 100 * r["time_within_tolerance_fraction"]
+            for r in mine
+            if r["error"] or r["time_within_tolerance_fraction"] is not None
         ]
-        within_axes.step(*_cdf(within), where="post", label=controller)
+        within_axes.step(*_cdf(within, len(mine)), where="post", label=controller)
     p95_axes.axvline(tolerance_mm, color="tab:red", ls="--", label=f"{tolerance_mm:g} mm")
     p95_axes.set_xscale("log")
     p95_axes.set_xlabel("p95 |head - reference| over the judged window (mm)")

@@ -1,7 +1,8 @@
 """A population Monte Carlo's figures per controller, from its rows (``analysis/trial_table.py``).
 
 Every figure is over all trials of a controller, settled or not; a trial whose run failed counts
-against it where a figure needs it (p95 over 1 mm, outside the band) and is counted on its own.
+as the worst a trial can be (an infinite error, never within the band, never settled), and is
+counted on its own; None in a figure is infinity ("never", "failed").
 The median is numpy's; a tail quantile (p90 or p10) is one trial's own value (numpy's
 inverted CDF), so a tail of trials that never settled reads "never" instead of a number
 interpolated with infinity.
@@ -49,38 +50,46 @@ def _figures(rows: list[dict], tolerance_mm: float) -> dict:
 
 
 def _run_figures(rows: list[dict], tolerance_mm: float) -> dict:
+    # A failed run counts as the worst a trial can be (an infinite error, never within the band,
+    # never settled): a bar is met by runs, not by their absence.
+    p95 = _column(rows, "p95_abs_error_mm", failed=np.inf)
+    settle = _column(rows, "settle_time_s", failed=np.inf, missing=np.inf)
     ran = [r for r in rows if not r["error"]]
-    p95 = _column(ran, "p95_abs_error_mm")
-    within = _column(ran, "time_within_tolerance_fraction")
-    settle = np.array([np.inf if r["settle_time_s"] is None else r["settle_time_s"] for r in ran])
-    failed = len(rows) - len(ran)
     return {
         "trials": len(rows),
-        "failed": failed,
+        "failed": len(rows) - len(ran),
         "unreachable_targets": sum(not r["reachable"] for r in rows),
-        # A failed run counts as a trial over the bar: the bar is met by runs, not by their absence.
-        "p95_within_tolerance_fraction": _share(p95 <= tolerance_mm, failed),
+        "p95_within_tolerance_fraction": _share(p95 <= tolerance_mm),
         "p95_abs_error_mm": _spread(p95, high=True),
-        "max_abs_error_mm": _spread(_column(ran, "max_abs_error_mm"), high=True),
-        "rms_error_mm": _spread(_column(ran, "rms_error_mm"), high=True),
-        "time_within_tolerance_fraction": _spread(within, high=False),
-        "settled_fraction": _share(np.isfinite(settle), failed),
+        "max_abs_error_mm": _spread(_column(rows, "max_abs_error_mm", failed=np.inf), high=True),
+        "rms_error_mm": _spread(_column(rows, "rms_error_mm", failed=np.inf), high=True),
+        "time_within_tolerance_fraction": _spread(
+            _column(rows, "time_within_tolerance_fraction", failed=0.0), high=False
+        ),
+        "settled_fraction": _share(np.isfinite(settle)),
         "settle_time_s": _spread(settle, high=True),
-        "overshoot_mm": _spread(_column(ran, "overshoot_mm", missing=0.0), high=True),
+        # Over the runs that ran: a failed run has no trajectory to overshoot.
+        "overshoot_mm": _spread(_column(ran, "overshoot_mm", failed=np.nan, missing=0.0), True),
     }
 
 
-def _column(rows: list[dict], name: str, missing: float = np.nan) -> np.ndarray:
-    return np.array([missing if r[name] is None else r[name] for r in rows], dtype=float)
+def _column(rows: list[dict], name: str, failed: float, missing: float = np.inf) -> np.ndarray:
+    """``name`` of each row: ``failed`` for a failed run, ``missing`` for an empty cell."""
+    return np.array(
+        [failed if r["error"] else missing if r[name] is None else r[name] for r in rows],
+        dtype=float,
+    )
 
 
-def _share(flags: np.ndarray, failed: int) -> float | None:
-    total = flags.size + failed
-    return float(np.sum(flags) / total) if total else None
+def _share(flags: np.ndarray) -> float | None:
+    return float(np.mean(flags)) if flags.size else None
 
 
 def _spread(values: np.ndarray, high: bool) -> dict:
-    """Median, the tail quantile on the bad side (p90 or p10) and the worst; inf reads None."""
+    """Median, the tail quantile on the bad side (p90 or p10) and the worst.
+
+    Infinity (never settled, or a failed run) reads None.
+    """
     if values.size == 0:
         return {"median": None, "p90" if high else "p10": None, "worst": None}
     tail = np.quantile(values, 0.9 if high else 0.1, method="inverted_cdf")
@@ -117,7 +126,10 @@ def summary_table(summary: dict) -> str:
             f"reachable targets only: p95 within ±{tolerance:g} mm",
             lambda f: _percent(f["reachable_targets_only"]["p95_within_tolerance_fraction"]),
         ),
-        ("settle time median / p90 / worst (s)", lambda f: _triple(f["settle_time_s"], "p90")),
+        (
+            "settle time median / p90 / worst (s)",
+            lambda f: _triple(f["settle_time_s"], "p90", infinite="never"),
+        ),
         ("overshoot median / p90 / worst (mm)", lambda f: _triple(f["overshoot_mm"], "p90")),
     ]
     width = max(len(label) for label, _ in lines)
@@ -137,10 +149,10 @@ def _percent(value: float | None) -> str:
     return "n/a" if value is None else f"{100 * value:.1f} %"
 
 
-def _triple(spread: dict, tail: str, percent: bool = False) -> str:
+def _triple(spread: dict, tail: str, percent: bool = False, infinite: str = "failed") -> str:
     def cell(value):
         if value is None:
-            return "never" if not percent else "n/a"
+            return infinite
         return f"{100 * value:.0f}%" if percent else f"{value:.2f}"
 
     return " / ".join(cell(spread[key]) for key in ("median", tail, "worst"))

@@ -24,7 +24,11 @@ def _cell(value) -> str:
         return ""
     if isinstance(value, bool):
         return _TRUE if value else _FALSE
-    return repr(value) if isinstance(value, float) else str(value)
+    text = repr(value) if isinstance(value, float) else str(value)
+    if "\n" in text or "\r" in text:
+        # A line is a row: that is what lets a reader drop a line cut off by a kill.
+        raise ValueError(f"a cell holds a line break: {text!r}")
+    return text
 
 
 def _value(text: str):

@@ -35,6 +35,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,21 +43,20 @@ import numpy as np
 
 from maskless.analysis.metrics import tracking_metrics
 from maskless.analysis.trial_table import TrialTableWriter, read_trial_rows, write_trial_table
-from maskless.diagrams.closed_loop import ClosedLoop, build_closed_loop, reference_levels
+from maskless.diagrams.closed_loop import ClosedLoop, build_closed_loop
 from maskless.diagrams.controller_design import NominalPneumatic
 from maskless.diagrams.output_folder import output_folder
 from maskless.diagrams.population import (
     MonteCarloConfig,
     Patient,
     draw_patient,
-    nominal_lift_window_m,
     patient_plant,
     patient_reach,
     sweep_scenario,
 )
-from maskless.diagrams.scenario import controller_from_shorthand
+from maskless.diagrams.scenario import PaperLqg, controller_from_shorthand
 from maskless.diagrams.simulation import simulate_loop
-from maskless.errors import ConfigError
+from maskless.errors import ConfigError, SweepError
 from maskless.systems.plant.pneumatic_plant import SWEPT_PARAMETERS
 from maskless.systems.units import m_to_mm
 
@@ -102,7 +102,6 @@ class TrialRunner:
         """Prepares what every trial shares; the loops are built on first use."""
         self.config = config
         self.nominal = NominalPneumatic.of(config.scenario)
-        self.lift_window_m = nominal_lift_window_m(config)
         self._loops: dict[str, ClosedLoop] = {}
 
     def loop(self, controller: str) -> ClosedLoop:
@@ -120,40 +119,47 @@ class TrialRunner:
 
     def patient(self, trial: int) -> Patient:
         """Trial ``trial``'s draws."""
-        return draw_patient(self.config, trial, self.lift_window_m)
+        return draw_patient(self.config, trial)
 
     def simulate(self, patient: Patient, controller: str):
         """The run of ``patient`` with ``controller`` (a ``SimulationRun``)."""
         loop = self.loop(controller)
-        scenario = sweep_scenario(
-            self.config,
-            patient.reference_offsets_m(self.config.scenario.start_lift_m),
-            seed=patient.seed,
-        )
         return simulate_loop(
             loop,
-            scenario,
+            sweep_scenario(self.config, (0.0, 0.0), seed=patient.seed),
             plant_parameters=patient_plant(self.nominal.parameters, patient),
-            reference_levels_m=reference_levels(scenario.reference, loop.start_height_m),
+            reference_levels_m=patient.reference_levels_m(
+                loop.start_height_m, self.nominal.parameters.rest_head_height_m
+            ),
         )
 
     def rows(self, trial: int) -> list[dict]:
         """Trial ``trial``'s rows, one per controller; a run that fails gives a row naming why."""
         patient = self.patient(trial)
         drawn = dataclasses.asdict(patient)
-        lowest, highest = patient_reach(self.nominal.parameters, patient)
-        start = patient.positioned_lift_m
-        reachable = all(lowest <= lift <= highest for lift in (start, start + patient.step_m))
         rows = []
         for controller in self.config.controllers:
-            row = {**drawn, "controller": controller, "reachable": reachable, "error": None}
+            row = {
+                **drawn,
+                "controller": controller,
+                "reachable": self._reachable(patient, controller),
+                "error": None,
+            }
             try:
                 row.update(self._metrics(patient, controller))
             except Exception as error:  # noqa: BLE001 (a failed trial is a row, named loudly)
                 row.update(dict.fromkeys(METRIC_COLUMNS))
-                row["error"] = f"{type(error).__name__}: {error}"
+                # One line: a row is one line of the table.
+                row["error"] = " ".join(f"{type(error).__name__}: {error}".split())
             rows.append(row)
         return rows
+
+    def _reachable(self, patient: Patient, controller: str) -> bool:
+        """Whether the controller's valves can hold the patient's head at both levels."""
+        outlet_used = not isinstance(controller_from_shorthand(controller), PaperLqg)
+        lowest, highest = patient_reach(self.nominal.parameters, patient, outlet_used)
+        start = patient.positioned_lift_m
+        return all(lowest <= lift <= highest for lift in (start, start + patient.step_m))
 
     def _metrics(self, patient: Patient, controller: str) -> dict:
         run = self.simulate(patient, controller)
@@ -192,18 +198,28 @@ def _mm(value_m: float | None) -> float | None:
 
 
 def fingerprint(config: MonteCarloConfig) -> str:
-    """What identifies a sweep's rows: everything in its configuration but the trial count."""
-    text = repr(dataclasses.replace(config, trials=0, worst_traces=0))
-    return hashlib.sha256(text.encode()).hexdigest()
+    """What identifies a sweep's rows: its configuration but the trial count, and model files.
+
+    A controller designed on a model file (``offset-free-lqg:MODEL.yaml``) is fingerprinted by
+    the file's bytes: a model identified again is another controller.
+    """
+    digest = hashlib.sha256(repr(dataclasses.replace(config, trials=0, worst_traces=0)).encode())
+    for controller in config.controllers:
+        _, _, model_file = controller.partition(":")
+        if model_file:
+            digest.update(Path(model_file).read_bytes())
+    return digest.hexdigest()
 
 
-# One TrialRunner per sweep per process: a worker builds its loops for the first trial it gets.
+# The latest sweep's TrialRunner in this process: a worker builds its loops for the first trial
+# it gets, and a long-lived Dask worker keeps no earlier sweep's loops.
 _RUNNERS: dict[str, TrialRunner] = {}
 
 
 def trial_rows(config: MonteCarloConfig, key: str, trial: int) -> list[dict]:
     """Trial ``trial``'s rows, on whichever process runs it (``key``: ``fingerprint(config)``)."""
     if key not in _RUNNERS:
+        _RUNNERS.clear()
         _RUNNERS[key] = TrialRunner(config)
     return _RUNNERS[key].rows(trial)
 
@@ -237,14 +253,18 @@ def run_sweep(request: SweepRequest) -> dict:
         The summary (``summary.json``'s content): per controller, the figures over all trials.
 
     Raises:
-        ConfigError: the folder holds a sweep of another configuration (and no ``restart``), or
-            ``workers`` is not positive.
+        ConfigError: the folder holds a sweep of another configuration (and no ``restart``),
+            ``workers`` is not positive or given with a scheduler, or the scheduler cannot be
+            reached.
+        SweepError: a worker process died; the trials finished before are on disk.
     """
     from maskless.analysis.population_summary import summarize_population
 
     config = request.config
     if request.workers is not None and request.workers < 1:
         raise ConfigError(f"workers = {request.workers}: expected at least 1")
+    if request.workers is not None and request.scheduler:
+        raise ConfigError("workers: the cluster's workers run a sweep with a scheduler; not both")
     out = output_folder(request.out)
     table = out / TABLE_NAME
     key = fingerprint(config)
@@ -254,14 +274,22 @@ def run_sweep(request: SweepRequest) -> dict:
     workers = request.workers or os.cpu_count() or 1
     start = time.perf_counter()
     with TrialTableWriter(table, ROW_COLUMNS) as writer, _progress_bar(request, todo) as bar:
-        for rows in _engine_results(request, key, todo, workers):
-            for row in rows:
-                writer.append(row)
-            bar.update(1)
+        try:
+            for rows in _engine_results(request, key, todo, workers):
+                for row in rows:
+                    writer.append(row)
+                bar.update(1)
+        except (BrokenProcessPool, _killed_worker_error()) as error:
+            raise SweepError(
+                f"a worker process died ({type(error).__name__}); the trials it finished are in "
+                f"{table}: run the same sweep again to finish the rest"
+            ) from error
     wall_s = time.perf_counter() - start
     _, rows = read_trial_rows(table)
-    rows = _sorted_rows(rows, config.controllers, config.trials)
+    # Every row stays on disk (a smaller --trials later loses none); the figures are this sweep's.
+    rows = _sorted_rows(rows, config.controllers)
     write_trial_table(table, ROW_COLUMNS, rows)
+    rows = [row for row in rows if row["trial"] < config.trials]
     summary = summarize_population(rows, config.controllers, config.scenario.metrics.tolerance_m)
     summary["sweep"] = {
         "trials": config.trials,
@@ -299,23 +327,27 @@ def _claim_folder(out: Path, config: MonteCarloConfig, key: str, restart: bool) 
 
 
 def _finished_trials(table: Path, controllers: list[str]) -> set[int]:
-    """The trials whose every controller has a row in ``table`` (none if there is no table)."""
+    """The trials with a row per controller in ``table``, none of them failed.
+
+    A failed run is tried again: its cause (a killed worker, a full disk) may have passed.
+    """
     if not table.exists():
         return set()
     _, rows = read_trial_rows(table)
     seen: dict[int, set[str]] = {}
     for row in rows:
-        seen.setdefault(row["trial"], set()).add(row["controller"])
+        if not row["error"]:
+            seen.setdefault(row["trial"], set()).add(row["controller"])
     return {trial for trial, found in seen.items() if found >= set(controllers)}
 
 
-def _sorted_rows(rows: list[dict], controllers: list[str], trials: int) -> list[dict]:
-    """One row per (trial, controller) below ``trials``, sorted.
+def _sorted_rows(rows: list[dict], controllers: list[str]) -> list[dict]:
+    """One row per (trial, controller), sorted; the latest where a trial ran twice.
 
-    A trial half-written by a killed sweep and run again appears once.
+    A trial half-written by a killed sweep, or failed, and run again appears once.
     """
     order = {controller: index for index, controller in enumerate(controllers)}
-    unique = {(row["trial"], row["controller"]): row for row in rows if row["trial"] < trials}
+    unique = {(row["trial"], row["controller"]): row for row in rows}
     return [unique[k] for k in sorted(unique, key=lambda k: (k[0], order.get(k[1], len(order))))]
 
 
@@ -356,10 +388,11 @@ def _dask_results(address: str, config, key: str, trials: list[int]) -> Iterator
 
     try:
         client = Client(address, timeout=30)
-    except OSError as error:
+    except (OSError, ValueError, TimeoutError) as error:
         raise ConfigError(f"--scheduler {address}: cannot connect ({error})") from None
     with client:
-        workers = max(1, len(client.scheduler_info()["workers"]))
+        # Threads, not workers: `dask worker` runs one thread per core by default, each a trial.
+        workers = max(1, sum(client.nthreads().values()))
 
         def first_done(pending):
             return wait(pending, return_when="FIRST_COMPLETED")
@@ -390,6 +423,15 @@ def _bounded(
             for trial in queue:
                 pending.add(submit(trial))
                 break
+
+
+def _killed_worker_error() -> type:
+    """Dask's error for a task whose workers kept dying (a never-raised type without Dask)."""
+    try:
+        from distributed.scheduler import KilledWorker
+    except ImportError:
+        return type("NoKilledWorker", (Exception,), {})
+    return KilledWorker
 
 
 def _exit_with_parent(parent_pid: int) -> None:

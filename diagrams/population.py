@@ -6,13 +6,15 @@ settings, the distributions a patient is drawn from, and the scenario every tria
 
 Each trial draws one patient: a head mass, the bladder's stiffness and leak, both valves'
 conductances and the supply pressure (each uniform between its low and high; a factor multiplies
-the scenario's nominal value), and a reference: the head is first positioned at a drawn lift,
-then stepped by a drawn size, up or down. Both levels lie inside the nominal plant's working
-range (``lift_margin_m`` above zero lift, and no higher than the lift the nominal inlet holds at
-``inlet_authority_fraction`` of its span). Whether the drawn patient can reach them is computed
-from the drawn plant (``patient_reach``) and reported beside the metrics: a heavy head on a soft
-bladder may sit too low for a target near the top. The controller is designed on the nominal plant
-and never sees the draw.
+the scenario's nominal value), and a reference, as a treatment plan would ask of this patient:
+the head is first positioned at a drawn lift, then stepped by a drawn size, up or down. Both
+levels lie inside the patient's working range (``lift_window_m``: ``lift_margin_m`` above where
+the head rests with both valves shut, and no higher than where the inlet holds it at
+``inlet_authority_fraction`` of its span). A step wider than that range (a heavy head on a weak
+supply) is drawn all the same and runs past it; whether each controller's valves can hold both
+levels at all is reported with the metrics (``patient_reach``). The controller is designed on the
+nominal plant and never sees the draw: the draw picks targets, as a planner who knows the
+patient's range would, and writes the plant.
 
 Trial k's draws come from ``SeedSequence([seed, k])`` alone, so a trial gives the same patient and
 noise whichever worker runs it, in whatever order, and a sweep that grows or resumes redraws none.
@@ -35,9 +37,12 @@ from maskless.diagrams.scenario import (
 )
 from maskless.errors import ConfigError, MissingFileError
 from maskless.systems.config_loading import UNSET, asset_path, load_config, refuse_out_of_range
-from maskless.systems.plant.pneumatic_design import steady_lift_curve
-from maskless.systems.plant.pneumatic_physics import PneumaticParameters
-from maskless.systems.plant.pneumatic_plant import steady_gauge_pressure_pa, steady_lift_m
+from maskless.systems.plant.pneumatic_physics import LIFT, PneumaticParameters
+from maskless.systems.plant.pneumatic_plant import (
+    equilibrium_state,
+    steady_gauge_pressure_pa,
+    steady_lift_m,
+)
 
 
 @dataclass
@@ -158,6 +163,7 @@ def load_population(path: str | Path) -> MonteCarloConfig:
             config = load_config(
                 MonteCarloConfig, path, defaults=MonteCarloConfig(scenario=scenario)
             )
+        config.controllers = [_model_file_resolved(c, path.parent) for c in config.controllers]
         validate_population(config)
     except ConfigError as error:
         raise ConfigError(f"{path}: {error}") from error
@@ -177,29 +183,47 @@ def validate_population(config: MonteCarloConfig) -> None:
             controller_from_shorthand(name)
         except ConfigError as error:
             raise ConfigError(f"controllers: {error}") from error
+        _, _, model_file = name.partition(":")
+        if model_file and not Path(model_file).is_file():
+            raise MissingFileError(f"controllers: {name}: model file not found")
     for name, draw in _ranges(config.population):
         refuse_out_of_range(
             f"population.{name}",
             draw,
             [(0 < draw.low <= draw.high, "low", f"0 < low <= high ({draw.high})")],
         )
-    refuse_out_of_range(
-        "population",
-        config.population,
-        [
-            (config.population.lift_margin_m >= 0, "lift_margin_m", "a margin >= 0"),
-            (
-                0 < config.population.inlet_authority_fraction <= 1,
-                "inlet_authority_fraction",
-                "a fraction in (0, 1]",
-            ),
-        ],
+    refuse_out_of_range("population", config.population, _window_checks(config))
+
+
+def _window_checks(config: MonteCarloConfig):
+    """(in range, field, expected) for the reference's working range, lazily."""
+    population = config.population
+    yield population.lift_margin_m >= 0, "lift_margin_m", "a margin >= 0"
+    yield (
+        0 < population.inlet_authority_fraction <= 1,
+        "inlet_authority_fraction",
+        "a fraction in (0, 1]",
     )
+    low, high = lift_window_m(config.scenario.pneumatic, population)
+    yield (
+        high - low >= population.step_size_m.high,
+        "step_size_m.high",
+        f"a step that fits the nominal plant's working range, {low * 1e3:.2f} to "
+        f"{high * 1e3:.2f} mm of lift (lift_margin_m and inlet_authority_fraction set it)",
+    )
+
+
+def _model_file_resolved(controller: str, folder: Path) -> str:
+    """``controller`` with its model file (if any) relative to ``folder``, the population's."""
+    name, separator, model_file = controller.partition(":")
+    if not model_file or Path(model_file).is_absolute():
+        return controller
+    return f"{name}{separator}{folder / model_file}"
 
 
 def _sweep_checks(config: MonteCarloConfig):
     """(in range, field, expected) for the sweep's own settings (lazily, in order)."""
-    yield config.trials >= 0, "trials", "a count >= 0"
+    yield config.trials >= 1, "trials", "at least 1 trial"
     yield 0 <= config.seed < 2**32, "seed", "a seed in [0, 2^32)"
     yield len(config.controllers) > 0, "controllers", "at least one controller"
     yield (
@@ -226,8 +250,9 @@ def _ranges(population: PopulationConfig):
 def sweep_scenario(config: MonteCarloConfig, levels_m, seed: int | None = None) -> Scenario:
     """The scenario a trial runs: the population's, its reference the sweep's two steps.
 
-    ``levels_m`` are the two reference offsets from the start (positioned, then stepped); a built
-    loop's levels are rewritten per trial, so any two values build the same Diagram.
+    ``levels_m`` are the reference's two offsets from the start (positioned, then stepped); a
+    built loop's levels are rewritten per trial (``Patient.reference_levels_m``), so any two
+    values build the same Diagram.
     """
     return dataclasses.replace(
         config.scenario,
@@ -250,7 +275,8 @@ class Patient:
         head_mass_kg, stiffness_n_m, leak_sonic_conductance_m3_s_pa,
         inlet_sonic_conductance_m3_s_pa, outlet_sonic_conductance_m3_s_pa,
         supply_gauge_pressure_pa: the drawn plant.
-        positioned_lift_m: the lift (of the nominal head) the head is first brought to (m).
+        positioned_lift_m: the lift the head is first brought to: m above the rest height, where
+            the nominal head rests on the empty bladder.
         step_m: the judged step, signed (m).
     """
 
@@ -265,57 +291,55 @@ class Patient:
     positioned_lift_m: float
     step_m: float
 
-    def reference_offsets_m(self, start_lift_m: float) -> tuple[float, float]:
-        """The reference's two levels relative to the start: positioned, then stepped (m)."""
-        positioned = self.positioned_lift_m - start_lift_m
-        return positioned, positioned + self.step_m
+    def reference_levels_m(self, start_height_m: float, rest_height_m: float) -> list[float]:
+        """The reference's levels: the start height, positioned, then stepped (m above the table).
+
+        Args:
+            start_height_m: where the loop starts (``ClosedLoop.start_height_m``).
+            rest_height_m: the plant's ``rest_head_height_m``.
+        """
+        positioned = rest_height_m + self.positioned_lift_m
+        return [start_height_m, positioned, positioned + self.step_m]
 
 
-def nominal_lift_window_m(config: MonteCarloConfig) -> tuple[float, float]:
-    """The lifts the reference may ask for: (lowest, highest) of the nominal plant (m)."""
-    p = config.scenario.pneumatic
-    currents, lifts = steady_lift_curve(p, num_points=200)
-    top_current = p.inlet.starting_current_a + (
-        config.population.inlet_authority_fraction * p.inlet.current_span_a
-    )
-    return config.population.lift_margin_m, float(np.interp(top_current, currents, lifts))
+def lift_window_m(p: PneumaticParameters, population: PopulationConfig) -> tuple[float, float]:
+    """The lifts a reference may ask of plant ``p``: (lowest, highest), m above its rest height.
 
-
-def draw_patient(config: MonteCarloConfig, trial: int, lift_window_m) -> Patient:
-    """Trial ``trial``'s patient (``lift_window_m``: ``nominal_lift_window_m(config)``).
-
-    Raises:
-        ConfigError: the largest step does not fit inside the lift window.
+    Lowest: ``lift_margin_m`` above where the head rests with both valves shut. Highest: where the
+    inlet holds it at ``inlet_authority_fraction`` of its current span, the outlet shut.
     """
+    shut = steady_lift_m(p, steady_gauge_pressure_pa(p, 0.0, 0.0))
+    top_current = p.inlet.starting_current_a + (
+        population.inlet_authority_fraction * p.inlet.current_span_a
+    )
+    return shut + population.lift_margin_m, float(equilibrium_state(p, top_current, 0.0)[LIFT])
+
+
+def draw_patient(config: MonteCarloConfig, trial: int) -> Patient:
+    """Trial ``trial``'s patient: the drawn plant, and a reference inside its working range."""
     draws, noise = np.random.SeedSequence([config.seed, trial]).spawn(2)
     rng = np.random.default_rng(draws)
     population, p = config.population, config.scenario.pneumatic
-    head_mass_kg = population.head_mass_kg.draw(rng)
-    stiffness = population.stiffness_factor.draw(rng) * p.stiffness_n_m
-    leak = population.leak_factor.draw(rng) * p.leak_sonic_conductance_m3_s_pa
-    inlet = population.inlet_conductance_factor.draw(rng) * p.inlet.sonic_conductance_m3_s_pa
-    outlet = population.outlet_conductance_factor.draw(rng) * p.outlet.sonic_conductance_m3_s_pa
-    supply = population.supply_gauge_pressure_pa.draw(rng)
+    plant = {
+        "head_mass_kg": population.head_mass_kg.draw(rng),
+        "stiffness_n_m": population.stiffness_factor.draw(rng) * p.stiffness_n_m,
+        "leak_sonic_conductance_m3_s_pa": population.leak_factor.draw(rng)
+        * p.leak_sonic_conductance_m3_s_pa,
+        "inlet_sonic_conductance_m3_s_pa": population.inlet_conductance_factor.draw(rng)
+        * p.inlet.sonic_conductance_m3_s_pa,
+        "outlet_sonic_conductance_m3_s_pa": population.outlet_conductance_factor.draw(rng)
+        * p.outlet.sonic_conductance_m3_s_pa,
+        "supply_gauge_pressure_pa": population.supply_gauge_pressure_pa.draw(rng),
+    }
     step = population.step_size_m.draw(rng) * rng.choice([-1.0, 1.0])
-    low, high = lift_window_m
-    lowest, highest = max(low, low - step), min(high, high - step)
-    if lowest > highest:
-        raise ConfigError(
-            f"population.step_size_m: a {abs(step) * 1e3:.2f} mm step does not fit in the "
-            f"working range of lifts {low * 1e3:.2f}-{high * 1e3:.2f} mm"
-        )
-    return Patient(
-        trial=trial,
-        seed=int(noise.generate_state(1)[0]),
-        head_mass_kg=head_mass_kg,
-        stiffness_n_m=stiffness,
-        leak_sonic_conductance_m3_s_pa=leak,
-        inlet_sonic_conductance_m3_s_pa=inlet,
-        outlet_sonic_conductance_m3_s_pa=outlet,
-        supply_gauge_pressure_pa=supply,
-        positioned_lift_m=float(rng.uniform(lowest, highest)),
-        step_m=float(step),
+    unplaced = Patient(
+        trial, int(noise.generate_state(1)[0]), **plant, positioned_lift_m=0.0, step_m=float(step)
     )
+    low, high = lift_window_m(patient_plant(p, unplaced), population)
+    lowest, highest = max(low, low - step), min(high, high - step)
+    # A step wider than the range starts from the range's far end and runs past the other.
+    positioned = rng.uniform(lowest, highest) if lowest <= highest else (low if step > 0 else high)
+    return dataclasses.replace(unplaced, positioned_lift_m=float(positioned))
 
 
 def patient_plant(nominal: PneumaticParameters, patient: Patient) -> PneumaticParameters:
@@ -335,13 +359,15 @@ def patient_plant(nominal: PneumaticParameters, patient: Patient) -> PneumaticPa
     )
 
 
-def patient_reach(nominal: PneumaticParameters, patient: Patient) -> tuple[float, float]:
-    """The lifts (of the nominal head's scale) the drawn plant holds at rest: (lowest, highest).
+def patient_reach(
+    nominal: PneumaticParameters, patient: Patient, outlet_used: bool = True
+) -> tuple[float, float]:
+    """The lifts the drawn plant holds at rest: (lowest, highest), m above its rest height.
 
-    Lowest with the outlet fully open and the inlet shut, highest the other way round; a head
-    height of ``rest_head_height_m + lift`` is reachable for a lift between them.
+    Highest with the inlet fully open and the outlet shut; lowest with the outlet fully open and
+    the inlet shut, or with both shut for a controller that never opens the outlet (the paper's).
     """
     p = patient_plant(nominal, patient)
-    lowest = steady_lift_m(p, steady_gauge_pressure_pa(p, 0.0, 1.0))
+    lowest = steady_lift_m(p, steady_gauge_pressure_pa(p, 0.0, 1.0 if outlet_used else 0.0))
     highest = steady_lift_m(p, steady_gauge_pressure_pa(p, 1.0, 0.0))
     return lowest, highest

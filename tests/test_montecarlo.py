@@ -15,6 +15,11 @@ import pytest
 
 from maskless.analysis.trial_table import read_trial_rows
 from maskless.diagrams.cli import main
+from maskless.diagrams.closed_loop import (
+    PNEUMATIC_PLANT_NAME,
+    REFERENCE_NAME,
+    set_plant_parameters,
+)
 from maskless.diagrams.montecarlo import (
     ROW_COLUMNS,
     SweepRequest,
@@ -49,10 +54,11 @@ def test_a_nominal_patients_row_is_what_simulate_reports_for_the_same_run(tmp_pa
     runner = TrialRunner(config)
     rows = runner.rows(1)
     patient = runner.patient(1)
+    start_m = runner.loop("offset-free-lqg").start_height_m
+    levels = patient.reference_levels_m(start_m, nominal.rest_head_height_m)
     for row in rows:
-        scenario = sweep_scenario(
-            config, patient.reference_offsets_m(config.scenario.start_lift_m), seed=patient.seed
-        )
+        offsets = [level - start_m for level in levels[1:]]
+        scenario = sweep_scenario(config, offsets, seed=patient.seed)
         scenario.controller = controller_from_shorthand(row["controller"])
         tracking = simulate(scenario).metrics["tracking"]
         for name in ("p95_abs_error_mm", "max_abs_error_mm", "overshoot_mm", "final_error_mm"):
@@ -60,16 +66,65 @@ def test_a_nominal_patients_row_is_what_simulate_reports_for_the_same_run(tmp_pa
         assert row["time_within_tolerance_fraction"] == tracking["time_within_tolerance_fraction"]
 
 
-def test_the_controller_is_designed_on_the_nominal_plant_not_the_drawn_one(tmp_path):
+def test_the_draw_reaches_the_plant_and_the_reference_and_nothing_else(tmp_path):
+    """The controller is designed on the nominal plant and starts the same for every patient."""
     config = tiny_population(tmp_path)
     runner = TrialRunner(config)
     p = config.scenario.pneumatic
     assert runner.nominal.parameters == dataclasses.replace(p, head_mass_kg=p.nominal_head_mass_kg)
-    patient = runner.patient(0)
-    assert patient_plant(p, patient) != runner.nominal.parameters
-    runner.rows(0)
-    # Still the same: a trial writes the draw into the plant's Context only.
-    assert runner.nominal.parameters.stiffness_n_m == p.stiffness_n_m
+    for controller in config.controllers:
+        diagram = runner.loop(controller).diagram
+        readers = {
+            # A system's "NAME.inputs" Multiplexer is its input port.
+            source.get_name(): sorted(
+                {system.get_name().removesuffix(".inputs") for system, _ in inputs}
+            )
+            for source, inputs in _readers(diagram).items()
+        }
+        assert readers[f"{PNEUMATIC_PLANT_NAME}.parameters"] == [PNEUMATIC_PLANT_NAME]
+        assert readers[f"{REFERENCE_NAME}.parameters"] == [REFERENCE_NAME]
+        contexts = []
+        for trial in (0, 1):
+            patient = runner.patient(trial)
+            context = diagram.CreateDefaultContext()
+            set_plant_parameters(diagram, context, patient_plant(p, patient))
+            contexts.append(context)
+        for system in diagram.GetSystems():
+            if system.get_name() in (PNEUMATIC_PLANT_NAME, f"{PNEUMATIC_PLANT_NAME}.parameters"):
+                continue
+            first, second = (diagram.GetSubsystemContext(system, c) for c in contexts)
+            assert _state_and_parameters(first) == _state_and_parameters(second), system.get_name()
+        assert _state_and_parameters(
+            diagram.GetSubsystemContext(
+                diagram.GetSubsystemByName(PNEUMATIC_PLANT_NAME), contexts[0]
+            )
+        ) != _state_and_parameters(
+            diagram.GetSubsystemContext(
+                diagram.GetSubsystemByName(PNEUMATIC_PLANT_NAME), contexts[1]
+            )
+        )
+
+
+def _readers(diagram):
+    """Source system -> the (system, input index) its outputs feed."""
+    readers = {}
+    for (system, input_index), (source, _) in diagram.connection_map().items():
+        readers.setdefault(source, []).append((system, input_index))
+    return readers
+
+
+def _state_and_parameters(context):
+    state = (
+        context.get_discrete_state_vector().CopyToVector().tolist()
+        if (context.num_discrete_state_groups())
+        else []
+    )
+    continuous = context.get_continuous_state_vector().CopyToVector().tolist()
+    numeric = [
+        context.get_numeric_parameter(i).CopyToVector().tolist()
+        for i in range(context.num_numeric_parameter_groups())
+    ]
+    return state, continuous, numeric
 
 
 def test_one_row_per_trial_and_controller_with_the_draws_and_metrics(tmp_path):
@@ -246,3 +301,74 @@ def test_the_command_prints_the_summary_and_bad_flags_are_named(tmp_path, capsys
     assert "expected at least 1" in capsys.readouterr().err
     assert main(["montecarlo", "--preset", "nope", "--out", str(out)]) == 2
     assert "no population preset 'nope'" in capsys.readouterr().err
+
+
+def test_a_smaller_sweep_keeps_every_row_on_disk_and_judges_its_own(tmp_path):
+    config = tiny_population(tmp_path, trials=3)
+    sweep(config, tmp_path / "mc", workers=1)
+    whole = table_bytes(tmp_path / "mc")
+    summary = sweep(dataclasses.replace(config, trials=1), tmp_path / "mc", workers=1)
+    assert summary["per_controller"]["paper-lqg"]["trials"] == 1
+    assert table_bytes(tmp_path / "mc") == whole
+    assert sweep(config, tmp_path / "mc", workers=1)["sweep"]["run_now"] == 0
+
+
+def test_a_failed_run_is_tried_again_when_the_sweep_resumes(tmp_path, monkeypatch):
+    config = tiny_population(tmp_path, trials=2)
+    original = TrialRunner.simulate
+
+    def broken(self, patient, controller):
+        if patient.trial == 1:
+            raise RuntimeError("a line\nand another")
+        return original(self, patient, controller)
+
+    monkeypatch.setattr(TrialRunner, "simulate", broken)
+    sweep(config, tmp_path / "mc", workers=1)
+    _, rows = read_trial_rows(tmp_path / "mc" / "trials.csv")
+    assert [r["error"] for r in rows if r["trial"] == 1] == ["RuntimeError: a line and another"] * 2
+    monkeypatch.setattr(TrialRunner, "simulate", original)
+    summary = sweep(config, tmp_path / "mc", workers=1)
+    assert (summary["sweep"]["run_now"], summary["sweep"]["resumed"]) == (1, 1)
+    sweep(config, tmp_path / "fresh", workers=1)
+    assert table_bytes(tmp_path / "mc") == table_bytes(tmp_path / "fresh")
+
+
+def test_a_model_file_controller_is_found_beside_the_population_and_fingerprinted(tmp_path):
+    from maskless.diagrams.population import load_population
+    from maskless.errors import MissingFileError
+    from tests.tiny_population import TINY_POPULATION
+
+    text = TINY_POPULATION.replace("paper-lqg]", "offset-free-lqg:model.yaml]")
+    path = tiny_population_file(tmp_path, text)
+    with pytest.raises(MissingFileError, match="model.yaml: model file not found"):
+        load_population(path)
+    (tmp_path / "model.yaml").write_text("a: 1\n")
+    config = load_population(path)
+    assert config.controllers[1] == f"offset-free-lqg:{tmp_path / 'model.yaml'}"
+    before = fingerprint(config)
+    (tmp_path / "model.yaml").write_text("a: 2\n")
+    assert fingerprint(config) != before
+
+
+def test_workers_and_a_scheduler_together_are_refused(tmp_path):
+    config = tiny_population(tmp_path, trials=1)
+    with pytest.raises(ConfigError, match="not both"):
+        sweep(config, tmp_path / "mc", workers=2, scheduler="tcp://127.0.0.1:1")
+
+
+def test_an_unreachable_scheduler_is_one_line(tmp_path, capsys):
+    population = tiny_population_file(tmp_path)
+    args = [
+        "montecarlo",
+        "--population",
+        str(population),
+        "--trials",
+        "1",
+        "--out",
+        str(tmp_path / "mc"),
+        "--no-progress",
+        "--scheduler",
+        "nonsense",
+    ]
+    assert main(args) == 2
+    assert "--scheduler nonsense: cannot connect" in capsys.readouterr().err

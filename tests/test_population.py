@@ -3,13 +3,16 @@
 import dataclasses
 
 import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource
 from scipy import stats
 
 from maskless.diagrams.population import (
     Patient,
     draw_patient,
+    lift_window_m,
     load_population,
-    nominal_lift_window_m,
     patient_plant,
     patient_reach,
     population_preset_path,
@@ -20,7 +23,7 @@ from maskless.diagrams.scenario import load_scenario
 from maskless.errors import ConfigError, MissingFileError
 from maskless.systems.config_loading import asset_path
 from maskless.systems.plant.pneumatic_physics import LIFT
-from maskless.systems.plant.pneumatic_plant import equilibrium_state
+from maskless.systems.plant.pneumatic_plant import add_pneumatic_plant, equilibrium_state
 from tests.tiny_population import TINY_POPULATION, tiny_population, tiny_population_file
 
 
@@ -99,20 +102,18 @@ def test_a_population_needs_the_pneumatic_plant(tmp_path):
 
 def test_a_trial_draws_the_same_patient_whatever_else_is_drawn(tmp_path):
     config = tiny_population(tmp_path)
-    window = nominal_lift_window_m(config)
-    later_first = [draw_patient(config, trial, window) for trial in (5, 2, 0)]
-    in_order = [draw_patient(config, trial, window) for trial in range(6)]
+    later_first = [draw_patient(config, trial) for trial in (5, 2, 0)]
+    in_order = [draw_patient(config, trial) for trial in range(6)]
     assert later_first == [in_order[5], in_order[2], in_order[0]]
     assert len({patient.seed for patient in in_order}) == 6
     other_seed = dataclasses.replace(config, seed=4)
-    assert draw_patient(other_seed, 0, window) != in_order[0]
+    assert draw_patient(other_seed, 0) != in_order[0]
 
 
 def test_draws_follow_their_stated_distributions(tmp_path):
-    """Kolmogorov-Smirnov against each uniform range; both levels inside the lift window."""
+    """Kolmogorov-Smirnov against each uniform range; both levels in the patient's own range."""
     config = tiny_population(tmp_path)
-    window = nominal_lift_window_m(config)
-    patients = [draw_patient(config, trial, window) for trial in range(1000)]
+    patients = [draw_patient(config, trial) for trial in range(1000)]
     p = config.scenario.pneumatic
     population = config.population
     drawn = {
@@ -139,32 +140,73 @@ def test_draws_follow_their_stated_distributions(tmp_path):
         assert stats.kstest(values, stats.uniform(low, span).cdf).pvalue > 0.01, name
     ups = sum(x.step_m > 0 for x in patients)
     assert stats.binomtest(ups, len(patients)).pvalue > 0.01
+    fits = 0
     for x in patients:
-        for lift in (x.positioned_lift_m, x.positioned_lift_m + x.step_m):
-            assert window[0] <= lift <= window[1]
+        low, high = lift_window_m(patient_plant(p, x), population)
+        levels = (x.positioned_lift_m, x.positioned_lift_m + x.step_m)
+        if abs(x.step_m) <= high - low:
+            fits += 1
+            assert all(low <= lift <= high for lift in levels)
+        else:  # from the range's far end, past the other
+            assert x.positioned_lift_m == (low if x.step_m > 0 else high)
+    assert len(patients) / 2 < fits < len(patients)  # both branches taken
 
 
-def test_a_step_larger_than_the_working_range_is_refused(tmp_path):
+def test_a_step_larger_than_the_nominal_working_range_is_refused_at_load(tmp_path):
+    text = TINY_POPULATION.replace("{low: 0.002, high: 0.010}", "{low: 0.002, high: 0.05}")
+    with pytest.raises(ConfigError, match=r"population.step_size_m.high = 0.05: expected a step"):
+        load_population(tiny_population_file(tmp_path, text))
+
+
+def test_the_working_range_is_where_the_valves_hold_the_head(tmp_path):
+    """Bottom: both shut, plus the margin; top: the inlet at its authority fraction."""
     config = tiny_population(tmp_path)
-    config.population.step_size_m.low = config.population.step_size_m.high = 0.05
-    with pytest.raises(ConfigError, match="population.step_size_m: a 50.00 mm step does not fit"):
-        draw_patient(config, 0, nominal_lift_window_m(config))
+    p, population = config.scenario.pneumatic, config.population
+    low, high = lift_window_m(p, population)
+    shut = equilibrium_state(p, 0.0, 0.0)[LIFT]
+    top = p.inlet.starting_current_a + population.inlet_authority_fraction * p.inlet.current_span_a
+    assert low == pytest.approx(shut + population.lift_margin_m, abs=1e-12)
+    assert high == equilibrium_state(p, top, 0.0)[LIFT]
+    sink_m = (p.head_mass_kg - p.nominal_head_mass_kg) * p.gravity_m_s2 / p.stiffness_n_m
+    assert shut == pytest.approx(-sink_m, abs=1e-9)  # an empty bladder carries the head alone
 
 
 def test_the_patients_plant_and_its_reach(tmp_path):
-    """Reach: the rest lift with one valve fully open, from the plant's own equilibrium."""
+    """Reach: where the plant, run open loop, settles with one valve fully open (or none)."""
     config = tiny_population(tmp_path)
     nominal = config.scenario.pneumatic
-    patient = draw_patient(config, 1, nominal_lift_window_m(config))
+    patient = draw_patient(config, 1)
     plant = patient_plant(nominal, patient)
     assert plant.head_mass_kg == patient.head_mass_kg
     assert plant.inlet.sonic_conductance_m3_s_pa == patient.inlet_sonic_conductance_m3_s_pa
     assert plant.outlet.sonic_conductance_m3_s_pa == patient.outlet_sonic_conductance_m3_s_pa
     assert plant.inlet.starting_current_a == nominal.inlet.starting_current_a
-    lowest, highest = patient_reach(nominal, patient)
-    full_inlet = equilibrium_state(plant, plant.inlet.saturation_current_a, 0.0)[LIFT]
-    full_outlet = equilibrium_state(plant, 0.0, plant.outlet.saturation_current_a)[LIFT]
-    assert (lowest, highest) == (full_outlet, full_inlet)
+    # Past saturation by the spool's play, so a spool lagging in its band still opens fully.
+    outlet_a = plant.outlet.saturation_current_a + 2 * plant.outlet.play_half_width_a
+    inlet_a = plant.inlet.saturation_current_a + 2 * plant.inlet.play_half_width_a
+    reach = {
+        "both valves": (patient_reach(nominal, patient), (outlet_a, 0.0)),
+        "inlet only": (patient_reach(nominal, patient, outlet_used=False), (0.0, 0.0)),
+    }
+    for name, (lifts, (lowest_outlet_a, _)) in reach.items():
+        for lift, currents in zip(lifts, [(0.0, lowest_outlet_a), (inlet_a, 0.0)], strict=True):
+            assert settled_lift_m(plant, *currents) == pytest.approx(lift, abs=2e-5), name
+    assert reach["both valves"][0][0] < reach["inlet only"][0][0]
+
+
+def settled_lift_m(p, inlet_a, outlet_a):
+    """The compiled plant run open loop from the rest with both valves shut, for 300 s."""
+    builder = DiagramBuilder()
+    plant = add_pneumatic_plant(builder, p, equilibrium_state(p, 0.0, 0.0), p.simulation_step_s)
+    for port, value in (("inlet_valve_current_a", inlet_a), ("outlet_valve_current_a", outlet_a)):
+        source = builder.AddSystem(ConstantVectorSource([value]))
+        builder.Connect(source.get_output_port(), plant.inputs[port])
+    builder.ExportOutput(plant.outputs["head_height_m"], "head_height_m")
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(300.0)
+    height = diagram.GetOutputPort("head_height_m").Eval(simulator.get_context())[0]
+    return height - p.rest_head_height_m
 
 
 def test_a_heavier_head_reaches_less_high():

@@ -76,3 +76,8 @@ def test_a_file_without_a_header_is_refused(tmp_path):
 def test_a_row_missing_a_column_is_a_bug_named():
     with pytest.raises(ValueError, match="lacks columns"):
         format_row({"trial": 0}, COLUMNS)
+
+
+def test_a_line_break_in_a_cell_is_refused_because_a_line_is_a_row():
+    with pytest.raises(ValueError, match="line break"):
+        format_row({"trial": 0, "error": "a\nb"}, ["trial", "error"])

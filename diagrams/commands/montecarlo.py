@@ -87,16 +87,23 @@ def run_command(args: argparse.Namespace) -> int:
     config = load_population(path)
     if args.trials is not None:
         config.trials = args.trials
-    summary = run_sweep(
-        SweepRequest(
-            config=config,
-            out=args.out,
-            workers=args.workers,
-            scheduler=args.scheduler,
-            restart=args.restart,
-            progress=not args.no_progress,
-        )
+    request = SweepRequest(
+        config=config,
+        out=args.out,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        restart=args.restart,
+        progress=not args.no_progress,
     )
+    try:
+        summary = run_sweep(request)
+    except KeyboardInterrupt:
+        print(
+            f"maskless montecarlo: interrupted; the finished trials are in {args.out}: run the "
+            "same command again to resume",
+            file=sys.stderr,
+        )
+        return 130
     failed = sum(f["failed"] for f in summary["per_controller"].values())
     if args.json:
         print(json.dumps(summary))

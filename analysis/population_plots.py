@@ -5,15 +5,18 @@ from pathlib import Path
 import numpy as np
 
 
-def worst_trials(rows: list[dict], controller: str, count: int) -> list[int]:
-    """The ``count`` runs of ``controller`` with the largest p95 error (a failed run has none)."""
+def worst_trials(rows: list[dict], controller: str, count: int) -> list[tuple[int, int]]:
+    """(trial, run) of the ``count`` runs of ``controller`` with the largest p95 error.
+
+    A failed run has no trace to show and is left out.
+    """
     ran = [r for r in rows if r["controller"] == controller and not r["error"]]
 
     def badness(row):
         return np.inf if row["p95_abs_error_mm"] is None else row["p95_abs_error_mm"]
 
-    ranked = sorted(ran, key=lambda r: (-badness(r), r["trial"]))
-    return [r["trial"] for r in ranked[:count]]
+    ranked = sorted(ran, key=lambda r: (-badness(r), r["trial"], r["run"]))
+    return [(r["trial"], r["run"]) for r in ranked[:count]]
 
 
 def _cdf(values, total: int) -> tuple[np.ndarray, np.ndarray]:
@@ -39,7 +42,7 @@ def plot_population(
         path: the PNG to write.
         rows: the sweep's rows.
         controllers: in the order to draw.
-        traces: controller -> [(trial, time from the step (s), error (mm))].
+        traces: controller -> [((trial, run), time from the step (s), error (mm))].
         tolerance_m: the clinical band (m).
     """
     from matplotlib.figure import Figure
@@ -77,10 +80,13 @@ def plot_population(
         axes.legend(fontsize=8)
     for column, controller in enumerate(controllers):
         axes = figure.add_subplot(grid[1, column])
-        reachable = {r["trial"]: r["reachable"] for r in rows if r["controller"] == controller}
-        for trial, times_s, error_mm in traces.get(controller, []):
-            note = "" if reachable.get(trial, True) else ", target out of its reach"
-            axes.plot(times_s, error_mm, lw=0.7, label=f"trial {trial}{note}")
+        reachable = {
+            (r["trial"], r["run"]): r["reachable"] for r in rows if r["controller"] == controller
+        }
+        for (trial, run), times_s, error_mm in traces.get(controller, []):
+            name = f"trial {trial}" + (f", run {run}" if run else "")
+            note = "" if reachable.get((trial, run), True) else ", target out of its reach"
+            axes.plot(times_s, error_mm, lw=0.7, label=f"{name}{note}")
         axes.axhspan(-tolerance_mm, tolerance_mm, color="tab:green", alpha=0.15)
         axes.axvline(0.0, color="grey", lw=0.8)
         axes.set_title(f"{controller}: its worst trials by p95")

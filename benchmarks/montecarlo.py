@@ -11,6 +11,9 @@ Sections (``--only``):
 - ``dask``: those trials on a 2-worker Dask ``LocalCluster`` (started before the clock) and on a
   2-process pool; the ratio of their times, and whether the tables are the same bytes. Target:
   within 25 %.
+- ``ablation``: the standard population for the offset-free LQG with one part removed at a time
+  (patient motion; the paper's camera noise, leaving the modelled; the drawn bladder, valves and
+  supply; and the drawn head too): which part costs the 1 mm bar most.
 - ``memory``: a 10,000-trial sweep of one controller over 6 simulated seconds each, on 2 processes,
   with the resident memory of the sweep and its workers sampled every second: the figure at 10 %,
   50 % and 90 % of the trials (the pool is gone by 100 %), and the largest. Target: flat (rows
@@ -29,12 +32,20 @@ from pathlib import Path
 import psutil
 
 from maskless.diagrams.montecarlo import SweepRequest, run_sweep
-from maskless.diagrams.population import load_population, population_preset_path
+from maskless.diagrams.population import UniformRange, load_population, population_preset_path
 
 sys.path.insert(0, str(Path(__file__).parent))
 from machine import machine_description  # noqa: E402
 
-SECTIONS = ("standard", "efficiency", "dask", "memory")
+SECTIONS = ("standard", "efficiency", "dask", "memory", "ablation")
+# The standard population with one part removed at a time (``ablated``).
+ABLATIONS = (
+    "nothing removed",
+    "no patient motion",
+    "modelled camera noise",
+    "nominal bladder, valves and supply",
+    "nominal head, bladder, valves and supply",
+)
 MEMORY_TRIALS = 10_000
 
 
@@ -171,6 +182,41 @@ def memory(folder: Path) -> dict:
     }
 
 
+def ablated(removed: str):
+    """The standard population, offset-free LQG only, with ``removed`` (one of ABLATIONS)."""
+    config = load_population(population_preset_path("standard"))
+    config.controllers = ["offset-free-lqg"]
+    scenario, population = config.scenario, config.population
+    if removed == "no patient motion":
+        scenario.patient_motion.enabled = False
+    if removed == "modelled camera noise":
+        for camera in scenario.cameras.values():
+            camera.error.enabled = False
+    if removed.startswith("nominal"):
+        for name in ("stiffness", "leak", "inlet_conductance", "outlet_conductance"):
+            setattr(population, f"{name}_factor", UniformRange(1.0, 1.0))
+        supply = scenario.pneumatic.supply_gauge_pressure_pa
+        population.supply_gauge_pressure_pa = UniformRange(supply, supply)
+    if removed.startswith("nominal head"):
+        head = scenario.pneumatic.nominal_head_mass_kg
+        population.head_mass_kg = UniformRange(head, head)
+    return config
+
+
+def ablation(folder: Path) -> dict:
+    figures = {}
+    for index, removed in enumerate(ABLATIONS):
+        summary = sweep(ablated(removed), folder / f"ablation_{index}", workers=2)["summary"]
+        found = summary["per_controller"]["offset-free-lqg"]
+        figures[removed] = {
+            "p95_within_tolerance_fraction": found["p95_within_tolerance_fraction"],
+            "p95_abs_error_mm": found["p95_abs_error_mm"],
+            "time_within_tolerance_fraction": found["time_within_tolerance_fraction"],
+            "unreachable_targets": found["unreachable_targets"],
+        }
+    return figures
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--only", choices=SECTIONS, action="append", help="run only these")
@@ -191,6 +237,8 @@ def main():
                 figures[section] = efficiency(folder, args.trials)
             elif section == "dask":
                 figures[section] = dask(folder, args.trials)
+            elif section == "ablation":
+                figures[section] = ablation(folder)
             else:
                 figures[section] = memory(folder)
     figures["machine"] = machine_description()

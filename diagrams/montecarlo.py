@@ -73,14 +73,16 @@ METRIC_COLUMNS = (
 )
 ROW_COLUMNS = (
     "trial",
+    "run",
     "controller",
-    *PATIENT_COLUMNS[1:],
+    *PATIENT_COLUMNS[2:],
     "reachable",
     *METRIC_COLUMNS,
     "error",
 )
-"""A row: the trial, the controller, the draws, whether the drawn plant can reach both reference
-levels, the metrics (mm and s) and, for a trial that failed, why (empty otherwise)."""
+"""A row: the trial (the patient), its run (seed), the controller, the draws, whether the
+controller's valves can hold the patient's head at both reference levels, the metrics (mm and s)
+and, for a run that failed, why (empty otherwise)."""
 
 TABLE_NAME, SUMMARY_NAME, PLOT_NAME = "trials.csv", "summary.json", "population.png"
 RECORD_NAME, CONFIG_NAME = "sweep.json", "population.yaml"
@@ -117,9 +119,9 @@ class TrialRunner:
             )
         return self._loops[controller]
 
-    def patient(self, trial: int) -> Patient:
-        """Trial ``trial``'s draws."""
-        return draw_patient(self.config, trial)
+    def patient(self, trial: int, run: int = 0) -> Patient:
+        """Trial ``trial``'s draws, for its ``run``-th seed."""
+        return draw_patient(self.config, trial, run)
 
     def simulate(self, patient: Patient, controller: str):
         """The run of ``patient`` with ``controller`` (a ``SimulationRun``)."""
@@ -134,8 +136,14 @@ class TrialRunner:
         )
 
     def rows(self, trial: int) -> list[dict]:
-        """Trial ``trial``'s rows, one per controller; a run that fails gives a row naming why."""
-        patient = self.patient(trial)
+        """Trial ``trial``'s rows, per seed and controller; a failed run's row names why."""
+        return [
+            row
+            for run in range(self.config.seeds_per_patient)
+            for row in self._patient_rows(self.patient(trial, run))
+        ]
+
+    def _patient_rows(self, patient: Patient) -> list[dict]:
         drawn = dataclasses.asdict(patient)
         rows = []
         for controller in self.config.controllers:
@@ -185,9 +193,11 @@ class TrialRunner:
             "final_error_mm": _mm(metrics.final_error_m),
         }
 
-    def error_trace_mm(self, trial: int, controller: str) -> tuple[np.ndarray, np.ndarray]:
-        """(time from the judged step (s), head - reference (mm)) of one trial, re-run."""
-        run = self.simulate(self.patient(trial), controller)
+    def error_trace_mm(
+        self, trial: int, run: int, controller: str
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(time from the judged step (s), head - reference (mm)) of one run, re-run."""
+        run = self.simulate(self.patient(trial, run), controller)
         head = run.signals["head_height_m"]
         error = head.values[0] - run.signals["reference_head_height_m"].values[0]
         return head.times_s - self.config.step_time_s, m_to_mm(error)
@@ -269,7 +279,7 @@ def run_sweep(request: SweepRequest) -> dict:
     table = out / TABLE_NAME
     key = fingerprint(config)
     _claim_folder(out, config, key, request.restart)
-    done = _finished_trials(table, config.controllers)
+    done = _finished_trials(table, config.controllers, config.seeds_per_patient)
     todo = [trial for trial in range(config.trials) if trial not in done]
     workers = request.workers or os.cpu_count() or 1
     start = time.perf_counter()
@@ -281,8 +291,9 @@ def run_sweep(request: SweepRequest) -> dict:
                 bar.update(1)
         except (BrokenProcessPool, _killed_worker_error()) as error:
             raise SweepError(
-                f"a worker process died ({type(error).__name__}); the trials it finished are in "
-                f"{table}: run the same sweep again to finish the rest"
+                f"a worker process died ({type(error).__name__}); the trials finished are in "
+                f"{table}: run the same sweep again to finish the rest (a script that starts a "
+                'local pool needs the `if __name__ == "__main__":` guard)'
             ) from error
     wall_s = time.perf_counter() - start
     _, rows = read_trial_rows(table)
@@ -326,29 +337,33 @@ def _claim_folder(out: Path, config: MonteCarloConfig, key: str, restart: bool) 
     record.write_text(json.dumps({"fingerprint": key, "columns": list(ROW_COLUMNS)}) + "\n")
 
 
-def _finished_trials(table: Path, controllers: list[str]) -> set[int]:
-    """The trials with a row per controller in ``table``, none of them failed.
+def _finished_trials(table: Path, controllers: list[str], seeds: int) -> set[int]:
+    """The trials with a row per seed and controller in ``table``, none of them failed.
 
     A failed run is tried again: its cause (a killed worker, a full disk) may have passed.
     """
     if not table.exists():
         return set()
     _, rows = read_trial_rows(table)
-    seen: dict[int, set[str]] = {}
+    seen: dict[int, set[tuple[int, str]]] = {}
     for row in rows:
         if not row["error"]:
-            seen.setdefault(row["trial"], set()).add(row["controller"])
-    return {trial for trial, found in seen.items() if found >= set(controllers)}
+            seen.setdefault(row["trial"], set()).add((row["run"], row["controller"]))
+    needed = {(run, controller) for run in range(seeds) for controller in controllers}
+    return {trial for trial, found in seen.items() if found >= needed}
 
 
 def _sorted_rows(rows: list[dict], controllers: list[str]) -> list[dict]:
-    """One row per (trial, controller), sorted; the latest where a trial ran twice.
+    """One row per (trial, run, controller), sorted; the latest where a trial ran twice.
 
     A trial half-written by a killed sweep, or failed, and run again appears once.
     """
     order = {controller: index for index, controller in enumerate(controllers)}
-    unique = {(row["trial"], row["controller"]): row for row in rows}
-    return [unique[k] for k in sorted(unique, key=lambda k: (k[0], order.get(k[1], len(order))))]
+    unique = {(row["trial"], row["run"], row["controller"]): row for row in rows}
+    return [
+        unique[key]
+        for key in sorted(unique, key=lambda k: (k[0], k[1], order.get(k[2], len(order))))
+    ]
 
 
 def _engine_results(
@@ -474,8 +489,8 @@ def _plot(path: Path, config: MonteCarloConfig, rows: list[dict]) -> None:
     runner = TrialRunner(config)
     traces = {
         controller: [
-            (trial, *runner.error_trace_mm(trial, controller))
-            for trial in worst_trials(rows, controller, config.worst_traces)
+            ((trial, run), *runner.error_trace_mm(trial, run, controller))
+            for trial, run in worst_trials(rows, controller, config.worst_traces)
         ]
         for controller in config.controllers
     }

@@ -18,6 +18,8 @@ patient's range would, and writes the plant.
 
 Trial k's draws come from ``SeedSequence([seed, k])`` alone, so a trial gives the same patient and
 noise whichever worker runs it, in whatever order, and a sweep that grows or resumes redraws none.
+A patient may be run with several noise seeds (``seeds_per_patient``): run r's seed is child r of
+the trial's noise sequence, so adding seeds changes none of those drawn before.
 """
 
 import dataclasses
@@ -90,7 +92,9 @@ class MonteCarloConfig:
     """A sweep: how many trials, which controllers, the population and the scenario.
 
     Attributes:
-        trials: patients drawn (``--trials`` overrides); each runs once per controller.
+        trials: patients drawn (``--trials`` overrides); each runs once per controller and seed.
+        seeds_per_patient: runs of each patient with different noise (camera noise, motion),
+            the same plant and reference.
         seed: the population's seed; trial k draws from ``SeedSequence([seed, k])``.
         controllers: each trial runs with each of these (``--controller`` shorthands:
             ``offset-free-lqg``, ``paper-lqg``, ``offset-free-lqg:MODEL.yaml``).
@@ -107,6 +111,7 @@ class MonteCarloConfig:
     """
 
     trials: int = 0
+    seeds_per_patient: int = 1
     seed: int = 0
     controllers: list[str] = field(default_factory=list)
     positioning_time_s: float = UNSET
@@ -224,6 +229,7 @@ def _model_file_resolved(controller: str, folder: Path) -> str:
 def _sweep_checks(config: MonteCarloConfig):
     """(in range, field, expected) for the sweep's own settings (lazily, in order)."""
     yield config.trials >= 1, "trials", "at least 1 trial"
+    yield config.seeds_per_patient >= 1, "seeds_per_patient", "at least 1 seed"
     yield 0 <= config.seed < 2**32, "seed", "a seed in [0, 2^32)"
     yield len(config.controllers) > 0, "controllers", "at least one controller"
     yield (
@@ -270,7 +276,8 @@ class Patient:
     """One trial's draws.
 
     Attributes:
-        trial: the trial's index.
+        trial: the trial's index: which patient.
+        run: which of the patient's ``seeds_per_patient`` runs.
         seed: the simulation's seed (every noise source of the run).
         head_mass_kg, stiffness_n_m, leak_sonic_conductance_m3_s_pa,
         inlet_sonic_conductance_m3_s_pa, outlet_sonic_conductance_m3_s_pa,
@@ -281,6 +288,7 @@ class Patient:
     """
 
     trial: int
+    run: int
     seed: int
     head_mass_kg: float
     stiffness_n_m: float
@@ -315,9 +323,10 @@ def lift_window_m(p: PneumaticParameters, population: PopulationConfig) -> tuple
     return shut + population.lift_margin_m, float(equilibrium_state(p, top_current, 0.0)[LIFT])
 
 
-def draw_patient(config: MonteCarloConfig, trial: int) -> Patient:
-    """Trial ``trial``'s patient: the drawn plant, and a reference inside its working range."""
-    draws, noise = np.random.SeedSequence([config.seed, trial]).spawn(2)
+def draw_patient(config: MonteCarloConfig, trial: int, run: int = 0) -> Patient:
+    """Trial ``trial``'s patient (its ``run``-th seed): the plant, and a reference in its range."""
+    draws, noises = np.random.SeedSequence([config.seed, trial]).spawn(2)
+    noise = noises.spawn(run + 1)[run]
     rng = np.random.default_rng(draws)
     population, p = config.population, config.scenario.pneumatic
     plant = {
@@ -333,7 +342,12 @@ def draw_patient(config: MonteCarloConfig, trial: int) -> Patient:
     }
     step = population.step_size_m.draw(rng) * rng.choice([-1.0, 1.0])
     unplaced = Patient(
-        trial, int(noise.generate_state(1)[0]), **plant, positioned_lift_m=0.0, step_m=float(step)
+        trial,
+        run,
+        int(noise.generate_state(1)[0]),
+        **plant,
+        positioned_lift_m=0.0,
+        step_m=float(step),
     )
     low, high = lift_window_m(patient_plant(p, unplaced), population)
     lowest, highest = max(low, low - step), min(high, high - step)

@@ -38,6 +38,21 @@ def sweep(config, out, **options):
     return run_sweep(SweepRequest(config=config, out=out, progress=False, **options))
 
 
+def command_args(population, out, trials=1, workers=1) -> list[str]:
+    """`maskless montecarlo`'s arguments for a small sweep, no progress bar."""
+    return [
+        "montecarlo",
+        "--population",
+        str(population),
+        "--trials",
+        str(trials),
+        *(["--workers", str(workers)] if workers else []),
+        "--out",
+        str(out),
+        "--no-progress",
+    ]
+
+
 def table_bytes(out):
     return (out / "trials.csv").read_bytes()
 
@@ -173,16 +188,7 @@ def test_a_sweep_killed_half_way_finishes_the_rest_only(tmp_path):
         sys.executable,
         "-m",
         "maskless.diagrams.cli",
-        "montecarlo",
-        "--population",
-        str(population),
-        "--trials",
-        "40",
-        "--workers",
-        "2",
-        "--out",
-        str(out),
-        "--no-progress",
+        *command_args(population, out, trials=40, workers=2),
     ]
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     table = out / "trials.csv"
@@ -251,20 +257,7 @@ def test_a_failed_run_is_a_row_that_says_why_and_fails_the_command(tmp_path, mon
 
     monkeypatch.setattr(TrialRunner, "simulate", broken)
     population = tiny_population_file(tmp_path)
-    code = main(
-        [
-            "montecarlo",
-            "--population",
-            str(population),
-            "--trials",
-            "2",
-            "--workers",
-            "1",
-            "--out",
-            str(tmp_path / "mc"),
-            "--no-progress",
-        ]
-    )
+    code = main(command_args(population, tmp_path / "mc", trials=2))
     assert code == 1
     assert "1 runs failed" in capsys.readouterr().err
     _, rows = read_trial_rows(tmp_path / "mc" / "trials.csv")
@@ -280,20 +273,7 @@ def test_a_failed_run_is_a_row_that_says_why_and_fails_the_command(tmp_path, mon
 def test_the_command_prints_the_summary_and_bad_flags_are_named(tmp_path, capsys):
     population = tiny_population_file(tmp_path)
     out = tmp_path / "mc"
-    args = [
-        "montecarlo",
-        "--population",
-        str(population),
-        "--trials",
-        "1",
-        "--workers",
-        "1",
-        "--out",
-        str(out),
-        "--no-progress",
-        "--json",
-    ]
-    assert main(args) == 0
+    assert main([*command_args(population, out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["sweep"]["trials"] == 1
     with pytest.raises(SystemExit):
@@ -358,17 +338,22 @@ def test_workers_and_a_scheduler_together_are_refused(tmp_path):
 
 def test_an_unreachable_scheduler_is_one_line(tmp_path, capsys):
     population = tiny_population_file(tmp_path)
-    args = [
-        "montecarlo",
-        "--population",
-        str(population),
-        "--trials",
-        "1",
-        "--out",
-        str(tmp_path / "mc"),
-        "--no-progress",
-        "--scheduler",
-        "nonsense",
-    ]
+    args = [*command_args(population, tmp_path / "mc", workers=None), "--scheduler", "nonsense"]
     assert main(args) == 2
     assert "--scheduler nonsense: cannot connect" in capsys.readouterr().err
+
+
+def test_several_seeds_per_patient_give_a_row_per_run_and_resume_by_trial(tmp_path):
+    config = tiny_population(tmp_path, trials=2, seeds_per_patient=2)
+    summary = sweep(config, tmp_path / "mc", workers=1)
+    _, rows = read_trial_rows(tmp_path / "mc" / "trials.csv")
+    assert [(r["trial"], r["run"], r["controller"]) for r in rows] == [
+        (t, run, c) for t in range(2) for run in range(2) for c in config.controllers
+    ]
+    assert summary["per_controller"]["paper-lqg"]["trials"] == 4
+    first, second = (r for r in rows if r["trial"] == 1 and r["controller"] == "paper-lqg")
+    assert first["head_mass_kg"] == second["head_mass_kg"] and first["seed"] != second["seed"]
+    one_seed = sweep(dataclasses.replace(config, seeds_per_patient=1), tmp_path / "one", workers=1)
+    assert one_seed["per_controller"]["paper-lqg"]["trials"] == 2
+    _, single = read_trial_rows(tmp_path / "one" / "trials.csv")
+    assert single == [r for r in rows if r["run"] == 0]  # run 0 is the same with more seeds

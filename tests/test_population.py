@@ -215,6 +215,7 @@ def test_a_heavier_head_reaches_less_high():
     base = Patient(
         0,
         0,
+        0,
         4.0,
         nominal.stiffness_n_m,
         nominal.leak_sonic_conductance_m3_s_pa,
@@ -238,3 +239,13 @@ def test_the_sweep_sets_the_reference_and_seed_of_the_scenario(tmp_path):
     assert scenario.reference.step_offsets_m == [0.001, -0.002]
     assert scenario.random_seed == 7
     assert config.scenario.reference.step_times_s != [1.0, 4.0]  # the population's is untouched
+
+
+def test_more_seeds_run_the_same_patient_with_new_noise_and_keep_the_first(tmp_path):
+    config = tiny_population(tmp_path)
+    runs = [draw_patient(config, 3, run) for run in range(3)]
+    assert [run.run for run in runs] == [0, 1, 2]
+    assert len({run.seed for run in runs}) == 3
+    same = [dataclasses.replace(run, run=0, seed=0) for run in runs]
+    assert same[0] == same[1] == same[2]  # the plant and the reference
+    assert draw_patient(config, 3) == runs[0]

@@ -9,6 +9,7 @@ from maskless.analysis.population_summary import summarize_population, summary_t
 def row(trial, controller="c", p95=0.5, within=1.0, settle=3.0, error=None, reachable=True):
     return {
         "trial": trial,
+        "run": 0,
         "controller": controller,
         "reachable": reachable,
         "p95_abs_error_mm": p95,

@@ -43,6 +43,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="N",
         help="patients to draw, each run with every controller (default: the population's)",
     )
+    parser.add_argument(
+        "--seeds-per-patient",
+        type=_count,
+        default=None,
+        metavar="N",
+        help="runs of each patient with different noise (default: the population's, 1)",
+    )
     add_out_argument(parser, "mc", "trials.csv, summary.json and population.png")
     parser.add_argument(
         "--workers",
@@ -87,6 +94,8 @@ def run_command(args: argparse.Namespace) -> int:
     config = load_population(path)
     if args.trials is not None:
         config.trials = args.trials
+    if args.seeds_per_patient is not None:
+        config.seeds_per_patient = args.seeds_per_patient
     request = SweepRequest(
         config=config,
         out=args.out,
@@ -110,7 +119,8 @@ def run_command(args: argparse.Namespace) -> int:
     else:
         sweep = summary["sweep"]
         print(
-            f"{config.trials} trials x {len(config.controllers)} controllers from {path} "
+            f"{config.trials} trials x {config.seeds_per_patient} seeds x "
+            f"{len(config.controllers)} controllers from {path} "
             f"({sweep['run_now']} run now, {sweep['resumed']} already done) in "
             f"{sweep['wall_time_s']:.1f} s on {sweep['engine']}"
         )

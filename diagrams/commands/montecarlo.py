@@ -86,6 +86,10 @@ def _count(text: str) -> int:
     return value
 
 
+def _count_of(count: int, noun: str) -> str:
+    return f"{count} {noun}" + ("" if count == 1 else "s")
+
+
 def run_command(args: argparse.Namespace) -> int:
     """`maskless montecarlo`: returns the process exit code (1 when a trial failed)."""
     from maskless.analysis.population_summary import summary_table
@@ -119,8 +123,8 @@ def run_command(args: argparse.Namespace) -> int:
     else:
         sweep = summary["sweep"]
         print(
-            f"{config.trials} trials x {config.seeds_per_patient} seeds x "
-            f"{len(config.controllers)} controllers from {path} "
+            f"{config.trials} trials x {_count_of(config.seeds_per_patient, 'seed')} x "
+            f"{_count_of(len(config.controllers), 'controller')} from {path} "
             f"({sweep['run_now']} run now, {sweep['resumed']} already done) in "
             f"{sweep['wall_time_s']:.1f} s on {sweep['engine']}"
         )

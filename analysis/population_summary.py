@@ -40,7 +40,7 @@ def _figures(rows: list[dict], tolerance_mm: float) -> dict:
     figures["reachable_targets_only"] = {
         key: reachable[key]
         for key in (
-            "trials",
+            "runs",
             "p95_within_tolerance_fraction",
             "p95_abs_error_mm",
             "time_within_tolerance_fraction",
@@ -56,7 +56,8 @@ def _run_figures(rows: list[dict], tolerance_mm: float) -> dict:
     settle = _column(rows, "settle_time_s", failed=np.inf, missing=np.inf)
     ran = [r for r in rows if not r["error"]]
     return {
-        "trials": len(rows),
+        "patients": len({r["trial"] for r in rows}),
+        "runs": len(rows),
         "failed": len(rows) - len(ran),
         "unreachable_targets": sum(not r["reachable"] for r in rows),
         "p95_within_tolerance_fraction": _share(p95 <= tolerance_mm),
@@ -110,9 +111,9 @@ def summary_table(summary: dict) -> str:
     per = summary["per_controller"]
     tolerance = summary["tolerance_mm"]
     lines = [
-        ("trials (failed; target out of the drawn plant's reach)", _trials_cell),
+        ("patients, runs (failed; step out of the valves' reach)", _runs_cell),
         (
-            f"trials with p95 within ±{tolerance:g} mm",
+            f"runs with p95 within ±{tolerance:g} mm",
             lambda f: _percent(f["p95_within_tolerance_fraction"]),
         ),
         ("p95 |error| median / p90 / worst (mm)", lambda f: _triple(f["p95_abs_error_mm"], "p90")),
@@ -141,8 +142,11 @@ def summary_table(summary: dict) -> str:
     return "\n".join([header, *body])
 
 
-def _trials_cell(figures: dict) -> str:
-    return f"{figures['trials']} ({figures['failed']}; {figures['unreachable_targets']})"
+def _runs_cell(figures: dict) -> str:
+    return (
+        f"{figures['patients']}, {figures['runs']} ({figures['failed']}; "
+        f"{figures['unreachable_targets']})"
+    )
 
 
 def _percent(value: float | None) -> str:

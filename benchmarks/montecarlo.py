@@ -13,7 +13,8 @@ Sections (``--only``):
   within 25 %.
 - ``ablation``: the standard population for the offset-free LQG with one part removed at a time
   (patient motion; the paper's camera noise, leaving the modelled; the drawn bladder, valves and
-  supply; and the drawn head too): which part costs the 1 mm bar most.
+  supply; and the drawn head too), each patient keeping the steps drawn for it: which part costs
+  the 1 mm bar most; and the rank correlation of each draw with the p95 error.
 - ``memory``: a 10,000-trial sweep of one controller over 6 simulated seconds each, on 2 processes,
   with the resident memory of the sweep and its workers sampled every second: the figure at 10 %,
   50 % and 90 % of the trials (the pool is gone by 100 %), and the largest. Target: flat (rows
@@ -31,20 +32,29 @@ from pathlib import Path
 
 import psutil
 
-from maskless.diagrams.montecarlo import SweepRequest, run_sweep
-from maskless.diagrams.population import UniformRange, load_population, population_preset_path
+from maskless.analysis.population_summary import summarize_population
+from maskless.diagrams.montecarlo import SweepRequest, TrialRunner, run_sweep
+from maskless.diagrams.population import load_population, population_preset_path
 
 sys.path.insert(0, str(Path(__file__).parent))
 from machine import machine_description  # noqa: E402
 
 SECTIONS = ("standard", "efficiency", "dask", "memory", "ablation")
-# The standard population with one part removed at a time (``ablated``).
+# The standard population with one part removed at a time: (what is removed, the drawn plant
+# constants set back to nominal in every patient, whose steps stay as drawn).
+PLANT_DRAWS = (
+    "stiffness_n_m",
+    "leak_sonic_conductance_m3_s_pa",
+    "inlet_sonic_conductance_m3_s_pa",
+    "outlet_sonic_conductance_m3_s_pa",
+    "supply_gauge_pressure_pa",
+)
 ABLATIONS = (
-    "nothing removed",
-    "no patient motion",
-    "modelled camera noise",
-    "nominal bladder, valves and supply",
-    "nominal head, bladder, valves and supply",
+    ("nothing removed", ()),
+    ("no patient motion", ()),
+    ("modelled camera noise", ()),
+    ("nominal bladder, valves and supply", PLANT_DRAWS),
+    ("nominal head, bladder, valves and supply", ("head_mass_kg", *PLANT_DRAWS)),
 )
 MEMORY_TRIALS = 10_000
 
@@ -182,39 +192,80 @@ def memory(folder: Path) -> dict:
     }
 
 
+class SameStepsRunner(TrialRunner):
+    """The population's patients with some drawn constants set back to nominal.
+
+    Each keeps the reference levels drawn for it (the same heights above the table), so a row
+    differs from the standard population's only in what was removed.
+    """
+
+    def __init__(self, config, nominal_fields):
+        super().__init__(config)
+        p = config.scenario.pneumatic
+        nominal = {
+            "head_mass_kg": p.nominal_head_mass_kg,
+            "stiffness_n_m": p.stiffness_n_m,
+            "leak_sonic_conductance_m3_s_pa": p.leak_sonic_conductance_m3_s_pa,
+            "inlet_sonic_conductance_m3_s_pa": p.inlet.sonic_conductance_m3_s_pa,
+            "outlet_sonic_conductance_m3_s_pa": p.outlet.sonic_conductance_m3_s_pa,
+            "supply_gauge_pressure_pa": p.supply_gauge_pressure_pa,
+        }
+        self._nominal = {name: nominal[name] for name in nominal_fields}
+
+    def patient(self, trial, run=0):
+        return dataclasses.replace(super().patient(trial, run), **self._nominal)
+
+
 def ablated(removed: str):
-    """The standard population, offset-free LQG only, with ``removed`` (one of ABLATIONS)."""
+    """The standard population, offset-free LQG only, with motion or the paper's noise removed."""
     config = load_population(population_preset_path("standard"))
     config.controllers = ["offset-free-lqg"]
-    scenario, population = config.scenario, config.population
     if removed == "no patient motion":
-        scenario.patient_motion.enabled = False
+        config.scenario.patient_motion.enabled = False
     if removed == "modelled camera noise":
-        for camera in scenario.cameras.values():
+        for camera in config.scenario.cameras.values():
             camera.error.enabled = False
-    if removed.startswith("nominal"):
-        for name in ("stiffness", "leak", "inlet_conductance", "outlet_conductance"):
-            setattr(population, f"{name}_factor", UniformRange(1.0, 1.0))
-        supply = scenario.pneumatic.supply_gauge_pressure_pa
-        population.supply_gauge_pressure_pa = UniformRange(supply, supply)
-    if removed.startswith("nominal head"):
-        head = scenario.pneumatic.nominal_head_mass_kg
-        population.head_mass_kg = UniformRange(head, head)
     return config
 
 
-def ablation(folder: Path) -> dict:
+def ablation() -> dict:
+    """Each ablation's figures (in this process: its runner is not the sweep's)."""
     figures = {}
-    for index, removed in enumerate(ABLATIONS):
-        summary = sweep(ablated(removed), folder / f"ablation_{index}", workers=2)["summary"]
-        found = summary["per_controller"]["offset-free-lqg"]
+    for removed, nominal_fields in ABLATIONS:
+        config = ablated(removed)
+        runner = SameStepsRunner(config, nominal_fields)
+        rows = [row for trial in range(config.trials) for row in runner.rows(trial)]
+        tolerance_m = config.scenario.metrics.tolerance_m
+        found = summarize_population(rows, config.controllers, tolerance_m)["per_controller"]
+        found = found["offset-free-lqg"]
         figures[removed] = {
             "p95_within_tolerance_fraction": found["p95_within_tolerance_fraction"],
             "p95_abs_error_mm": found["p95_abs_error_mm"],
             "time_within_tolerance_fraction": found["time_within_tolerance_fraction"],
             "unreachable_targets": found["unreachable_targets"],
+            "holdable_steps_only": found["reachable_targets_only"],
         }
+        if not nominal_fields and removed == "nothing removed":
+            figures[removed]["spearman_with_p95_holdable"] = spearman_with_p95(rows)
     return figures
+
+
+def spearman_with_p95(rows: list[dict]) -> dict:
+    """Spearman's rank correlation of each draw with the p95 error, over the holdable steps."""
+    from scipy import stats
+
+    holdable = [row for row in rows if row["reachable"] and not row["error"]]
+    p95 = [row["p95_abs_error_mm"] for row in holdable]
+    draws = ["head_mass_kg", *PLANT_DRAWS, "positioned_lift_m"]
+    found = {
+        name: float(stats.spearmanr([row[name] for row in holdable], p95).statistic)
+        for name in draws
+    }
+    found["abs_step_m"] = float(
+        stats.spearmanr([abs(r["step_m"]) for r in holdable], p95).statistic
+    )
+    found["runs"] = len(holdable)
+    return found
 
 
 def main():
@@ -238,7 +289,7 @@ def main():
             elif section == "dask":
                 figures[section] = dask(folder, args.trials)
             elif section == "ablation":
-                figures[section] = ablation(folder)
+                figures[section] = ablation()
             else:
                 figures[section] = memory(folder)
     figures["machine"] = machine_description()

@@ -37,6 +37,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
+from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -208,12 +209,16 @@ def _mm(value_m: float | None) -> float | None:
 
 
 def fingerprint(config: MonteCarloConfig) -> str:
-    """What identifies a sweep's rows: its configuration but the trial count, and model files.
+    """What identifies a sweep's rows: its configuration, model files and the rows' format.
 
+    The trial and seed counts are left out (a sweep may grow or shrink; every row stays on disk).
     A controller designed on a model file (``offset-free-lqg:MODEL.yaml``) is fingerprinted by
-    the file's bytes: a model identified again is another controller.
+    the file's bytes: a model identified again is another controller. The package's version and
+    the columns change the fingerprint too: rows from other code are not mixed in.
     """
-    digest = hashlib.sha256(repr(dataclasses.replace(config, trials=0, worst_traces=0)).encode())
+    ignored = dataclasses.replace(config, trials=0, seeds_per_patient=0, worst_traces=0)
+    digest = hashlib.sha256(repr(ignored).encode())
+    digest.update(f"{metadata.version('maskless')} {ROW_COLUMNS}".encode())
     for controller in config.controllers:
         _, _, model_file = controller.partition(":")
         if model_file:
@@ -221,17 +226,21 @@ def fingerprint(config: MonteCarloConfig) -> str:
     return digest.hexdigest()
 
 
-# The latest sweep's TrialRunner in this process: a worker builds its loops for the first trial
-# it gets, and a long-lived Dask worker keeps no earlier sweep's loops.
-_RUNNERS: dict[str, TrialRunner] = {}
+# The latest sweep's TrialRunner in this thread: a worker builds its loops for the first trial it
+# gets, a long-lived Dask worker keeps no earlier sweep's loops, and two threads of one Dask worker
+# never share a Context or a loop.
+_RUNNERS = threading.local()
 
 
 def trial_rows(config: MonteCarloConfig, key: str, trial: int) -> list[dict]:
     """Trial ``trial``'s rows, on whichever process runs it (``key``: ``fingerprint(config)``)."""
-    if key not in _RUNNERS:
-        _RUNNERS.clear()
-        _RUNNERS[key] = TrialRunner(config)
-    return _RUNNERS[key].rows(trial)
+    runner = getattr(_RUNNERS, "runner", None)
+    # The key says which loops to build; the rest of the config (its seed count) may differ.
+    if getattr(_RUNNERS, "key", None) != key:
+        _RUNNERS.key, _RUNNERS.runner = key, TrialRunner(config)
+    elif runner.config != config:
+        runner.config = config
+    return _RUNNERS.runner.rows(trial)
 
 
 @dataclass(frozen=True)
@@ -300,7 +309,11 @@ def run_sweep(request: SweepRequest) -> dict:
     # Every row stays on disk (a smaller --trials later loses none); the figures are this sweep's.
     rows = _sorted_rows(rows, config.controllers)
     write_trial_table(table, ROW_COLUMNS, rows)
-    rows = [row for row in rows if row["trial"] < config.trials]
+    rows = [
+        row
+        for row in rows
+        if row["trial"] < config.trials and row["run"] < config.seeds_per_patient
+    ]
     summary = summarize_population(rows, config.controllers, config.scenario.metrics.tolerance_m)
     summary["sweep"] = {
         "trials": config.trials,
@@ -323,6 +336,11 @@ def _claim_folder(out: Path, config: MonteCarloConfig, key: str, restart: bool) 
 
     record = out / RECORD_NAME
     table = out / TABLE_NAME
+    if table.exists() and not record.exists() and not restart:
+        raise ConfigError(
+            f"{out}: holds {TABLE_NAME} but no {RECORD_NAME} saying which sweep made it; use "
+            "another --out, or --restart to discard it"
+        )
     if record.exists() and table.exists() and not restart:
         found = json.loads(record.read_text()).get("fingerprint")
         if found != key:

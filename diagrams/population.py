@@ -13,8 +13,9 @@ the head rests with both valves shut, and no higher than where the inlet holds i
 ``inlet_authority_fraction`` of its span). A step wider than that range (a heavy head on a weak
 supply) is drawn all the same and runs past it; whether each controller's valves can hold both
 levels at all is reported with the metrics (``patient_reach``). The controller is designed on the
-nominal plant and never sees the draw: the draw picks targets, as a planner who knows the
-patient's range would, and writes the plant.
+nominal plant, and its design, state and parameters do not depend on the draw; what it receives
+of the patient is the reference, chosen as a planner who knows the patient's range would choose
+it.
 
 Trial k's draws come from ``SeedSequence([seed, k])`` alone, so a trial gives the same patient and
 noise whichever worker runs it, in whatever order, and a sweep that grows or resumes redraws none.
@@ -71,9 +72,10 @@ class PopulationConfig:
         outlet_conductance_factor: times its ``pneumatic.outlet.sonic_conductance_m3_s_pa``.
         supply_gauge_pressure_pa: the compressor's regulated supply (Pa, gauge).
         step_size_m: the size of the judged step (m); up or down with equal chance.
-        lift_margin_m: both reference levels lie at least this far above zero lift (m).
-        inlet_authority_fraction: ...and no higher than the lift the nominal inlet holds at this
-            fraction of its current span.
+        lift_margin_m: both reference levels lie at least this far above where the patient's
+            head rests with both valves shut (m; below zero lift for a heavy head).
+        inlet_authority_fraction: ...and no higher than where the patient's inlet holds it at
+            this fraction of its current span.
     """
 
     head_mass_kg: UniformRange = field(default_factory=UniformRange)

@@ -151,7 +151,7 @@ def test_one_row_per_trial_and_controller_with_the_draws_and_metrics(tmp_path):
         (t, c) for t in range(3) for c in config.controllers
     ]
     assert all(r["error"] is None and r["p95_abs_error_mm"] >= 0 for r in rows)
-    assert summary["per_controller"]["offset-free-lqg"]["trials"] == 3
+    assert summary["per_controller"]["offset-free-lqg"]["runs"] == 3
     assert json.loads((tmp_path / "mc" / "summary.json").read_text()) == summary
     assert (tmp_path / "mc" / "population.png").read_bytes()[:4] == b"\x89PNG"
 
@@ -244,7 +244,8 @@ def test_a_folder_of_another_sweep_is_refused_unless_restarted(tmp_path):
         sweep(other, tmp_path / "mc", workers=1)
     summary = sweep(other, tmp_path / "mc", workers=1, restart=True)
     assert summary["sweep"]["run_now"] == 1
-    assert fingerprint(dataclasses.replace(config, trials=9, worst_traces=0)) == fingerprint(config)
+    grown = dataclasses.replace(config, trials=9, seeds_per_patient=3, worst_traces=0)
+    assert fingerprint(grown) == fingerprint(config)
 
 
 def test_a_failed_run_is_a_row_that_says_why_and_fails_the_command(tmp_path, monkeypatch, capsys):
@@ -288,7 +289,7 @@ def test_a_smaller_sweep_keeps_every_row_on_disk_and_judges_its_own(tmp_path):
     sweep(config, tmp_path / "mc", workers=1)
     whole = table_bytes(tmp_path / "mc")
     summary = sweep(dataclasses.replace(config, trials=1), tmp_path / "mc", workers=1)
-    assert summary["per_controller"]["paper-lqg"]["trials"] == 1
+    assert summary["per_controller"]["paper-lqg"]["runs"] == 1
     assert table_bytes(tmp_path / "mc") == whole
     assert sweep(config, tmp_path / "mc", workers=1)["sweep"]["run_now"] == 0
 
@@ -350,10 +351,65 @@ def test_several_seeds_per_patient_give_a_row_per_run_and_resume_by_trial(tmp_pa
     assert [(r["trial"], r["run"], r["controller"]) for r in rows] == [
         (t, run, c) for t in range(2) for run in range(2) for c in config.controllers
     ]
-    assert summary["per_controller"]["paper-lqg"]["trials"] == 4
+    assert summary["per_controller"]["paper-lqg"]["runs"] == 4
     first, second = (r for r in rows if r["trial"] == 1 and r["controller"] == "paper-lqg")
     assert first["head_mass_kg"] == second["head_mass_kg"] and first["seed"] != second["seed"]
     one_seed = sweep(dataclasses.replace(config, seeds_per_patient=1), tmp_path / "one", workers=1)
-    assert one_seed["per_controller"]["paper-lqg"]["trials"] == 2
+    assert one_seed["per_controller"]["paper-lqg"]["runs"] == 2
     _, single = read_trial_rows(tmp_path / "one" / "trials.csv")
     assert single == [r for r in rows if r["run"] == 0]  # run 0 is the same with more seeds
+    grown = sweep(config, tmp_path / "one", workers=1)  # a second seed into the same folder
+    assert grown["sweep"]["run_now"] == 2
+    assert table_bytes(tmp_path / "one") == table_bytes(tmp_path / "mc")
+
+
+def test_a_table_no_sweep_claims_is_refused(tmp_path):
+    config = tiny_population(tmp_path, trials=1)
+    (tmp_path / "mc").mkdir()
+    (tmp_path / "mc" / "trials.csv").write_text("trial,run\n0,0\n")
+    with pytest.raises(ConfigError, match="no sweep.json saying which sweep made it"):
+        sweep(config, tmp_path / "mc", workers=1)
+    assert sweep(config, tmp_path / "mc", workers=1, restart=True)["sweep"]["run_now"] == 1
+
+
+def test_two_threads_of_one_dask_worker_give_the_same_rows(tmp_path):
+    """Each thread builds its own loops: no Context or Diagram is shared between trials."""
+    distributed = pytest.importorskip("distributed")
+    config = tiny_population(tmp_path, trials=4)
+    sweep(config, tmp_path / "one", workers=1)
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=2, processes=True, dashboard_address=None
+    ) as cluster:
+        sweep(config, tmp_path / "threads", scheduler=cluster.scheduler_address)
+    assert table_bytes(tmp_path / "threads") == table_bytes(tmp_path / "one")
+
+
+def test_what_the_controller_starts_from_is_the_same_for_every_patient(tmp_path, monkeypatch):
+    """Through the sweep's own path (simulate_loop, SetRandomContext, the writes), at t = 0."""
+    import maskless.diagrams.simulation as simulation
+
+    config = tiny_population(tmp_path)
+    runner = TrialRunner(config)
+    seen = {}
+
+    class StoppedAtStartError(Exception):
+        pass
+
+    class Recording(simulation.Simulator):
+        def Initialize(self):  # noqa: N802 (Drake's name)
+            context = self.get_context()
+            diagram = self.get_system()
+            for system in diagram.GetSystems():
+                name = system.get_name()
+                if name.startswith(("offset_free_lqg", "paper_lqg")):
+                    found = _state_and_parameters(diagram.GetSubsystemContext(system, context))
+                    seen.setdefault(name, []).append(found)
+            raise StoppedAtStartError
+
+    monkeypatch.setattr(simulation, "Simulator", Recording)
+    for trial in (0, 1, 2):
+        patient = dataclasses.replace(runner.patient(trial), seed=0)  # the same noise draws
+        for controller in config.controllers:
+            with pytest.raises(StoppedAtStartError):
+                runner.simulate(patient, controller)
+    assert seen and all(found.count(found[0]) == 3 for found in seen.values())

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from maskless.analysis.population_plots import plot_population, worst_trials
+from maskless.analysis.population_plots import _cdf, plot_population, worst_trials
 from tests.test_population_summary import failed, row
 
 
@@ -19,3 +19,9 @@ def test_the_plot_is_written(tmp_path):
         tmp_path / "p.png", rows, ["c"], {"c": [((1, 0), t, np.sin(t)), ((0, 1), t, 0 * t)]}, 0.001
     )
     assert path.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_cdf_counts_every_trial_so_a_curve_missing_runs_stops_short_of_one():
+    x, y = _cdf([3.0, 1.0, 2.0], total=4)
+    np.testing.assert_array_equal(x, [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(y, [0.25, 0.5, 0.75])

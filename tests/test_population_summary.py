@@ -32,7 +32,7 @@ def test_figures_are_numpys_over_every_trial():
         row(k, p95=v, within=1 - v / 4, settle=None if v > 1.5 else v) for k, v in enumerate(p95)
     ]
     figures = summarize_population(rows, ["c"], 0.001)["per_controller"]["c"]
-    assert figures["trials"] == 10 and figures["failed"] == 0
+    assert figures["runs"] == 10 and figures["failed"] == 0
     assert figures["p95_within_tolerance_fraction"] == np.mean(p95 <= 1.0)
     assert figures["p95_abs_error_mm"]["median"] == np.median(p95)
     assert figures["p95_abs_error_mm"]["p90"] == np.quantile(p95, 0.9, method="inverted_cdf")
@@ -41,6 +41,20 @@ def test_figures_are_numpys_over_every_trial():
     assert figures["settled_fraction"] == np.mean(p95 <= 1.5)
     assert figures["settle_time_s"]["worst"] is None  # never settled
     assert figures["settle_time_s"]["median"] == np.median(np.where(p95 > 1.5, np.inf, p95))
+
+
+def test_hand_computed_figures_and_an_infinite_median():
+    """p95 0.2..2.0 mm in 0.2 steps: median 1.1, p90 (a trial's own value) 1.8, 5 of 10 <= 1."""
+    rows = [row(k, p95=0.2 * (k + 1)) for k in range(10)]
+    figures = summarize_population(rows, ["c"], 0.001)["per_controller"]["c"]
+    assert figures["p95_abs_error_mm"]["median"] == pytest.approx(1.1)
+    assert figures["p95_abs_error_mm"]["p90"] == pytest.approx(1.8)
+    assert figures["p95_within_tolerance_fraction"] == 0.5
+    assert figures["patients"] == 10
+    # Two runs, one failed: the median lies between a number and infinity, so it is infinite.
+    halves = summarize_population([row(0, p95=0.4), failed(1)], ["c"], 0.001)
+    assert halves["per_controller"]["c"]["p95_abs_error_mm"]["median"] is None
+    assert "failed" in summary_table(halves)
 
 
 def test_a_failed_run_counts_as_the_worst_trial_not_as_no_trial():
@@ -60,7 +74,7 @@ def test_reachable_only_figures_leave_out_the_unreachable_targets():
     figures = summarize_population(rows, ["c"], 0.001)["per_controller"]["c"]
     assert figures["unreachable_targets"] == 1
     assert figures["p95_within_tolerance_fraction"] == 0.5
-    assert figures["reachable_targets_only"]["trials"] == 1
+    assert figures["reachable_targets_only"]["runs"] == 1
     assert figures["reachable_targets_only"]["p95_within_tolerance_fraction"] == 1.0
 
 

@@ -37,6 +37,7 @@ from maskless.errors import ConfigError
 from maskless.systems.control.offset_free_lqg import add_offset_free_lqg
 from maskless.systems.control.paper_lqg import add_paper_lqg, paper_lqg
 from maskless.systems.control.step_reference import add_step_reference
+from maskless.systems.fault_injection import add_camera_faults, add_valve_faults, camera_faults_of
 from maskless.systems.late_random_sources import LateRandomSources
 from maskless.systems.linear_model import LinearModel
 from maskless.systems.named_symbolic_system import PortMap
@@ -222,8 +223,10 @@ def add_cameras(
         else:
             sensor = add_depth_sensor(builder, name, camera)
             builder.Connect(head_height, sensor.inputs["head_height_m"])
-        sensors[name] = add_camera_error(
-            builder, name, camera.error, sensor, 1.0 / camera.frame_rate_hz, late
+        frame_period_s = 1.0 / camera.frame_rate_hz
+        measured = add_camera_error(builder, name, camera.error, sensor, frame_period_s, late)
+        sensors[name] = add_camera_faults(
+            builder, name, camera_faults_of(config.faults, name), measured, frame_period_s, late
         )
     return sensors
 
@@ -465,8 +468,9 @@ def assemble_loop(
     feed the controller, if any); every output is exported and logged; the Diagram is built and
     named.
     """
-    builder.Connect(drive.inlet, plant.inlet)
-    builder.Connect(drive.outlet, plant.outlet)
+    # A stuck valve sees its stuck current; the controller and the log see its command.
+    builder.Connect(add_valve_faults(builder, config.faults, "inlet", drive.inlet), plant.inlet)
+    builder.Connect(add_valve_faults(builder, config.faults, "outlet", drive.outlet), plant.outlet)
     # The scenario models' RandomSources are added last, so switching one on changes no draw of
     # the others (late_random_sources).
     late = LateRandomSources()

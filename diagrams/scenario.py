@@ -30,6 +30,7 @@ from maskless.systems.config_loading import (
     load_config,
 )
 from maskless.systems.control.offset_free_lqg import OffsetFreeLqgWeights
+from maskless.systems.fault_injection import FaultConfig, validate_faults
 from maskless.systems.paper_parameters import (
     PaperParameters,
     load_paper_parameters,
@@ -243,6 +244,8 @@ class Scenario:
         start_lift_m: where the pneumatic plant's head starts, at rest (m of lift).
         camera_image_rate_hz: images per second each rendered camera adds to the recording.
         patient_motion: the patient's own drift, shifts and breathing, added to the head height.
+        faults: name -> a fault injected into a camera or a valve over a time window
+            (``systems/fault_injection.py``); the controller's design never sees them.
     """
 
     random_seed: int = 0
@@ -252,6 +255,7 @@ class Scenario:
     start_lift_m: float = UNSET
     camera_image_rate_hz: float = UNSET
     patient_motion: PatientMotionConfig = field(default_factory=PatientMotionConfig)
+    faults: dict[str, FaultConfig] = field(default_factory=dict)
     reference: ReferenceConfig = field(default_factory=ReferenceConfig)
     cameras: dict[str, Camera] = field(default_factory=dict)
     local_filter: LocalFilterConfig = field(default_factory=LocalFilterConfig)
@@ -406,6 +410,7 @@ def validate_scenario(config: Scenario) -> None:
         "a positive, finite rate",
     )
     validate_patient_motion(config.patient_motion)
+    validate_faults(config.faults, list(config.cameras))
     for field_name in ("initial_position_std_m", "initial_velocity_std_m_s"):
         value = getattr(config.local_filter, field_name)
         require(value > 0, f"local_filter.{field_name}", value, "a positive std")

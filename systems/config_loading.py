@@ -194,6 +194,17 @@ def check_override(schema, field_name: str, value, source: str) -> None:
         ConfigError: naming ``source``, the field and what was expected.
     """
     annotation = typing.get_type_hints(schema)[field_name]
+    if typing.get_origin(annotation) is dict:
+        if not isinstance(value, dict):
+            raise ConfigError(f"{source}: field '{field_name}' = {value!r}: expected a mapping")
+        annotation = typing.get_args(annotation)[1]
+        for item in value.values():
+            _check_override_value(annotation, field_name, item, source)
+        return
+    _check_override_value(annotation, field_name, value, source)
+
+
+def _check_override_value(annotation, field_name: str, value, source: str) -> None:
     alternatives = _dataclass_alternatives(annotation)
     if alternatives and not isinstance(value, alternatives):
         names = ", ".join(alternative.__name__ for alternative in alternatives)

@@ -198,8 +198,8 @@ def check_override(schema, field_name: str, value, source: str) -> None:
         if not isinstance(value, dict):
             raise ConfigError(f"{source}: field '{field_name}' = {value!r}: expected a mapping")
         annotation = typing.get_args(annotation)[1]
-        for item in value.values():
-            _check_override_value(annotation, field_name, item, source)
+        for key, item in value.items():
+            _check_override_value(annotation, f"{field_name}.{key}", item, source)
         return
     _check_override_value(annotation, field_name, value, source)
 

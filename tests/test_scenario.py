@@ -238,7 +238,7 @@ def test_a_choice_set_as_a_string_is_refused_naming_the_variants():
     [
         ({"duration_s": "30"}, r"field 'duration_s' = '30': expected a number"),
         ({"random_seed": 1.5}, r"field 'random_seed' = 1.5: expected an integer"),
-        ({"cameras": {"a": 3}}, r"cameras\.a = 3: expected a KinectV1Config"),
+        ({"cameras": {"a": 3}}, r"cameras\.a' = 3: expected one of KinectV1Config"),
         ({"cameras": {"kinéct": None}}, r"cameras\.kinéct: expected a name of ASCII letters"),
         ({"cameras": {"fusion": None}}, r"cameras\.fusion: the closed loop has a system"),
     ],

@@ -81,6 +81,7 @@ def symbolic_filter():
         initial_height_m=0.2,
         valid_range_m=(0.4, 4.0),
         config=LocalFilterConfig(initial_position_std_m=0.01, initial_velocity_std_m_s=0.02),
+        detection=load_scenario().fault_detection,
     )
 
 

@@ -288,14 +288,15 @@ def add_sensing_chain(
             initial_height_m=start_height_m,
             valid_range_m=(sensor_config.min_range_m, sensor_config.max_range_m),
             config=config.local_filter,
+            detection=config.fault_detection,
         )
         for port in ("distance_m", "valid"):
             builder.Connect(sensors[name].outputs[port], local_filter.inputs[port])
         filters[name] = local_filter
     sensor_names = list(config.cameras)
-    fusion = add_track_fusion(builder, sensor_names, name="fusion")
+    fusion = add_track_fusion(builder, sensor_names, config.fault_detection, name="fusion")
     for name, local_filter in filters.items():
-        for port in ("estimated_state", "covariance"):
+        for port in ("estimated_state", "covariance", "health"):
             builder.Connect(local_filter.outputs[port], fusion.inputs[f"{name}_{port}"])
     return SensingChain(sensor_names, sensors, filters, fusion)
 
@@ -317,12 +318,12 @@ def export_and_log(
     ``command_period_s``, so estimates and commands share timestamps.
     """
     exported = dict(loop_outputs)
-    exported["fusion.estimated_state"] = sensing.fusion.outputs["estimated_state"]
-    exported["fusion.covariance"] = sensing.fusion.outputs["covariance"]
+    for port in ("estimated_state", "covariance", "health"):
+        exported[f"fusion.{port}"] = sensing.fusion.outputs[port]
     for name in sensing.sensor_names:
         for port in ("distance_m", "valid"):
             exported[f"{name}.{port}"] = sensing.sensors[name].outputs[port]
-        for port in ("estimated_state", "covariance"):
+        for port in ("estimated_state", "covariance", "health"):
             exported[f"{name}_filter.{port}"] = sensing.filters[name].outputs[port]
     for port_name, port in exported.items():
         builder.ExportOutput(port, port_name)
@@ -366,9 +367,9 @@ def build_closed_loop(
             heads builds with (``benchmarks/closed_loop.py``).
 
     Exported outputs: ``reference_head_height_m``, ``head_height_m``, ``inlet_valve_current_a``,
-    ``outlet_valve_current_a``, ``fusion.estimated_state``, ``fusion.covariance``, and for each
-    camera ``{name}.distance_m``, ``{name}.valid``, ``{name}_filter.estimated_state`` and
-    ``{name}_filter.covariance``.
+    ``outlet_valve_current_a``, ``fusion.estimated_state``, ``fusion.covariance``,
+    ``fusion.health``, and for each camera ``{name}.distance_m``, ``{name}.valid``,
+    ``{name}_filter.estimated_state``, ``{name}_filter.covariance`` and ``{name}_filter.health``.
     """
     paper = config.paper
     builder = DiagramBuilder()

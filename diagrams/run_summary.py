@@ -7,9 +7,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from maskless.analysis.detection_figures import detection_latency_s, flag_figures
 from maskless.analysis.metrics import estimate_error_std_m, tracking_metrics
 from maskless.systems.control.offset_free_lqg import closed_loop_poles as offset_free_poles
 from maskless.systems.control.paper_lqg import closed_loop_poles
+from maskless.systems.sensing.fault_detection import FUSION_HEALTH, TRACK_FLAGS
 from maskless.systems.units import a_to_ma, m_to_mm
 
 if TYPE_CHECKING:
@@ -55,6 +57,7 @@ def summarize(run: "SimulationRun") -> dict:
         float(np.mean(fused[times >= start] - head[times >= start]))
     )
 
+    detection = _detection(config, loop, s)
     paper = config.paper
     inlet = s["inlet_valve_current_a"].values[0]
     outlet = s["outlet_valve_current_a"].values[0]
@@ -92,6 +95,7 @@ def summarize(run: "SimulationRun") -> dict:
             "reference_travel_mm": m_to_mm(float(reference.max() - reference.min())),
         },
         "estimation": estimation,
+        "fault_detection": detection,
         "valve_commands": commands,
         "paper_model" if loop.controller == "paper-lqg" else "offset_free_lqg": controller,
         "paper_reported": {
@@ -100,6 +104,43 @@ def summarize(run: "SimulationRun") -> dict:
             "overshoot_mm": paper.reported_overshoot_mm,
             "settle_time_s": paper.reported_settle_time_s,
         },
+    }
+
+
+def _detection(config, loop, s) -> dict:
+    """When each check fired, and how soon after each injected fault one fired."""
+    camera_flags = {
+        name: dict(zip(TRACK_FLAGS, s[f"{name}_filter.health"].values, strict=True))
+        for name in loop.sensor_names
+    }
+    fusion = s["fusion.health"]
+    tracks_used, *fusion_flags = fusion.values
+    fused = dict(zip(FUSION_HEALTH[1:], fusion_flags, strict=True))
+    fused["fewer_tracks"] = (tracks_used < len(loop.sensor_names) - 0.5).astype(float)
+    faults = {}
+    for fault_name, fault in config.faults.items():
+        if fault.start_s > fusion.times_s[-1]:
+            continue
+        # A camera fault may be caught at its camera or at the fusion; a valve fault only there.
+        watched = {f"{fault.target}.{k}": v for k, v in camera_flags.get(fault.target, {}).items()}
+        watched.update({f"fusion.{k}": v for k, v in fused.items()})
+        flag, latency = detection_latency_s(fusion.times_s, watched, fault.start_s)
+        faults[fault_name] = {
+            "kind": fault.kind,
+            "start_s": fault.start_s,
+            "detected_by": flag,
+            "latency_s": latency,
+        }
+    return {
+        "cameras": {
+            name: flag_figures(s[f"{name}_filter.health"].times_s, flags)
+            for name, flags in camera_flags.items()
+        },
+        "fusion": {
+            **flag_figures(fusion.times_s, fused),
+            "fewest_tracks_used": int(round(float(tracks_used.min()))),
+        },
+        "faults": faults,
     }
 
 
@@ -202,6 +243,7 @@ def format_summary(summary: dict) -> str:
         f"  fused mean error {e['fused_error_mean_mm']:+.3f} mm; the paper reports a fused std "
         f"of at most {reported['fused_std_mm']:g} mm"
     )
+    lines += _format_detection(summary["fault_detection"])
     c = summary["valve_commands"]
     lines += [
         "",
@@ -228,6 +270,27 @@ def format_summary(summary: dict) -> str:
     if "files" in summary:
         lines += ["Files:"] + [f"  {kind}: {path}" for kind, path in summary["files"].items()]
     return "\n".join(lines)
+
+
+def _format_detection(d: dict) -> list[str]:
+    """The checks that fired (none: one line), and each fault's detection."""
+    fired = [
+        f"  {where} {flag}: first at {f['first_set_s']:.2f} s, "
+        f"{100 * f['set_fraction']:.1f} % of the run"
+        for where, flags in [*d["cameras"].items(), ("fusion", d["fusion"])]
+        for flag, f in flags.items()
+        if isinstance(f, dict) and f["first_set_s"] is not None
+    ]
+    lines = ["", "Fault detection" + ("" if fired else ": no check fired")]
+    lines += fired
+    for name, fault in d["faults"].items():
+        found = (
+            f"detected by {fault['detected_by']} after {fault['latency_s']:.2f} s"
+            if fault["detected_by"]
+            else "NOT detected"
+        )
+        lines.append(f"  fault {name!r} ({fault['kind']} from {fault['start_s']:g} s): {found}")
+    return lines
 
 
 def _format_paper_model(p: dict) -> list[str]:

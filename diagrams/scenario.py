@@ -48,6 +48,10 @@ from maskless.systems.sensing.depth_sensor import (
     KinectV2Config,
     validate_sensor_config,
 )
+from maskless.systems.sensing.fault_detection import (
+    FaultDetectionConfig,
+    validate_fault_detection,
+)
 from maskless.systems.sensing.local_kalman_filter import LocalFilterConfig
 
 
@@ -246,6 +250,7 @@ class Scenario:
         patient_motion: the patient's own drift, shifts and breathing, added to the head height.
         faults: name -> a fault injected into a camera or a valve over a time window
             (``systems/fault_injection.py``); the controller's design never sees them.
+        fault_detection: the estimator's checks of each camera and of the fused estimate.
     """
 
     random_seed: int = 0
@@ -259,6 +264,7 @@ class Scenario:
     reference: ReferenceConfig = field(default_factory=ReferenceConfig)
     cameras: dict[str, Camera] = field(default_factory=dict)
     local_filter: LocalFilterConfig = field(default_factory=LocalFilterConfig)
+    fault_detection: FaultDetectionConfig = field(default_factory=FaultDetectionConfig)
     metrics: MetricsConfig = field(default_factory=MetricsConfig)
     paper: PaperParameters = field(default_factory=PaperParameters)
     pneumatic: PneumaticParameters = field(default_factory=PneumaticParameters)
@@ -411,6 +417,7 @@ def validate_scenario(config: Scenario) -> None:
     )
     validate_patient_motion(config.patient_motion)
     validate_faults(config.faults, list(config.cameras))
+    validate_fault_detection(config.fault_detection)
     for field_name in ("initial_position_std_m", "initial_velocity_std_m_s"):
         value = getattr(config.local_filter, field_name)
         require(value > 0, f"local_filter.{field_name}", value, "a positive std")

@@ -5,6 +5,7 @@ import pytest
 import scipy.linalg
 from system_harness import port_layout
 
+from maskless.diagrams.scenario import load_scenario
 from maskless.errors import ConfigError
 from maskless.systems.sensing.local_kalman_filter import (
     LocalFilterConfig,
@@ -19,6 +20,7 @@ SIGMA_R2 = 70e-6
 START_M = 0.2
 VALID_RANGE_M = (0.4, 4.0)
 CONFIG = LocalFilterConfig(initial_position_std_m=0.01, initial_velocity_std_m_s=0.02)
+DETECTION = load_scenario().fault_detection  # the shipped checks
 
 
 @pytest.fixture(scope="module")
@@ -32,6 +34,7 @@ def kf():
         initial_height_m=START_M,
         valid_range_m=VALID_RANGE_M,
         config=CONFIG,
+        detection=DETECTION,
     )
 
 
@@ -58,7 +61,9 @@ def context_at(kf, x, P, last_tick_s, now_s, distance, valid):
     offsets = np.concatenate(
         [x - [START_M, 0.0], [P[0, 0] - P0[0, 0], P[0, 1], P[1, 1] - P0[1, 1]]]
     )
-    context.SetDiscreteState(np.concatenate([offsets, [last_tick_s]]))
+    # The checks' memory: a usable frame at the last tick, none rejected or repeated since.
+    checks = [last_tick_s, 0.0, 0.0, 0.0]
+    context.SetDiscreteState(np.concatenate([offsets, [last_tick_s], checks]))
     context.SetTime(now_s)
     kf.GetInputPort("distance_m").FixValue(context, [distance])
     kf.GetInputPort("valid").FixValue(context, [valid])
@@ -78,7 +83,7 @@ def test_ports(kf):
     assert kf.get_name() == "kinect_v1_filter"
     assert port_layout(kf) == (
         {"distance_m": 1, "valid": 1},
-        {"estimated_state": 2, "covariance": 4},
+        {"estimated_state": 2, "covariance": 4, "health": 3},
     )
 
 
@@ -187,4 +192,5 @@ def test_bad_parameters_are_refused():
             initial_height_m=0.2,
             valid_range_m=VALID_RANGE_M,
             config=CONFIG,
+            detection=DETECTION,
         )

@@ -4,7 +4,10 @@ import numpy as np
 import pytest
 from system_harness import port_layout
 
+from maskless.diagrams.scenario import load_scenario
 from maskless.systems.sensing.track_fusion import fuse_tracks, make_track_fusion
+
+DETECTION = load_scenario().fault_detection  # the shipped checks
 
 
 def random_tracks(count, seed):
@@ -44,22 +47,25 @@ def test_fusion_weights_the_less_noisy_track_more():
 
 
 def test_system_ports_and_output_match_eq_10():
-    fusion = make_track_fusion(["kinect_v1", "kinect_v2"])
+    fusion = make_track_fusion(["kinect_v1", "kinect_v2"], DETECTION)
     assert fusion.get_name() == "fusion"
     assert port_layout(fusion) == (
         {
             "kinect_v1_estimated_state": 2,
             "kinect_v1_covariance": 4,
+            "kinect_v1_health": 3,
             "kinect_v2_estimated_state": 2,
             "kinect_v2_covariance": 4,
+            "kinect_v2_health": 3,
         },
-        {"estimated_state": 2, "covariance": 4},
+        {"estimated_state": 2, "covariance": 4, "health": 3},
     )
     states, covariances = random_tracks(2, 7)
     context = fusion.CreateDefaultContext()
     for name, x, P in zip(["kinect_v1", "kinect_v2"], states, covariances, strict=True):
         fusion.GetInputPort(f"{name}_estimated_state").FixValue(context, x)
         fusion.GetInputPort(f"{name}_covariance").FixValue(context, P.ravel())
+        fusion.GetInputPort(f"{name}_health").FixValue(context, np.zeros(3))
     x_ref, P_ref = eq_10(states, covariances)
     np.testing.assert_allclose(
         fusion.GetOutputPort("estimated_state").Eval(context), x_ref, rtol=1e-9
@@ -71,6 +77,6 @@ def test_system_ports_and_output_match_eq_10():
 
 def test_no_tracks_is_an_error():
     with pytest.raises(ValueError, match="at least one track"):
-        make_track_fusion([])
+        make_track_fusion([], DETECTION)
     with pytest.raises(ValueError, match="one covariance per state"):
         fuse_tracks([np.zeros(2)], [])

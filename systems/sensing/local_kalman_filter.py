@@ -11,10 +11,12 @@ variance to its estimate, close to the 80.81 % reduction the paper reports for t
 as σ_a = 2000 mm/s² passes 68 % (a 32 % reduction), far from it.
 
 The filter runs at its camera's frame rate: each tick predicts over one frame period (Eq. 8) and,
-when the frame is usable, updates (Eq. 9). A frame is usable when ``valid`` is set and its distance
-lies inside the camera's working range: zeros, NaNs and infinities from the camera never reach the
-estimate, the filter just predicts. The first tick, at t = 0, also predicts over a whole frame: the
-configured initial estimate is taken to hold one frame before the start. Its outputs are the
+when the frame is usable, updates (Eq. 9). A frame is usable when ``valid`` is set, its distance
+lies inside the camera's working range and its innovation inside the gate (``fault_detection``):
+zeros, NaNs, infinities and implausible jumps never reach the estimate, the filter just predicts.
+The filter also reports whether its camera went stale, keeps being rejected, or is stuck. The
+first tick, at t = 0, also predicts over a whole frame: the configured initial estimate is taken
+to hold one frame before the start. Its outputs are the
 estimate and covariance predicted to the current time, so the fusion site can combine tracks from
 cameras that tick at different instants.
 """
@@ -23,7 +25,14 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.math import DiscreteAlgebraicRiccatiEquation
-from pydrake.symbolic import Expression, MakeVectorVariable, Variable, if_then_else, logical_and
+from pydrake.symbolic import (
+    Expression,
+    MakeVectorVariable,
+    Variable,
+    if_then_else,
+    logical_and,
+    logical_not,
+)
 from pydrake.systems.framework import DiagramBuilder
 
 from maskless.errors import ConfigError
@@ -33,6 +42,11 @@ from maskless.systems.named_symbolic_system import (
     add_named_symbolic_system,
     building_expressions,
     diagram_form,
+)
+from maskless.systems.sensing.fault_detection import (
+    FaultDetectionConfig,
+    frames_in,
+    nis_bound,
 )
 
 MEASUREMENT_MATRIX = np.array([[1.0, 0.0]])  # H in Eq. 7
@@ -107,6 +121,7 @@ def add_local_kalman_filter(
     initial_height_m: float,
     valid_range_m: tuple[float, float],
     config: LocalFilterConfig,
+    detection: FaultDetectionConfig,
 ) -> PortMap:
     """Adds one local filter to ``builder``.
 
@@ -119,6 +134,7 @@ def add_local_kalman_filter(
         output_ports:
         - estimated_state
         - covariance
+        - health
 
     Args:
         builder: where the filter's systems go.
@@ -130,10 +146,12 @@ def add_local_kalman_filter(
         initial_height_m: the estimate's start (m); velocity starts at 0.
         valid_range_m: (nearest, farthest) distance the camera can report (m); frames outside it
             are not used.
-        config: the initial uncertainty and the plausibility gate.
+        config: the initial uncertainty.
+        detection: the innovation gate and the camera's checks (``fault_detection``).
 
     ``estimated_state`` is [height (m), velocity (m/s)] and ``covariance`` the 2x2 P row-major, both
-    predicted to the current time from the last tick.
+    predicted to the current time from the last tick. ``health`` is ``TRACK_FLAGS``, each 1 when
+    set: a frame outside the innovation gate is not used, like one outside the range.
     """
     for field_name, value in [
         ("frame_period_s", frame_period_s),
@@ -151,6 +169,11 @@ def add_local_kalman_filter(
     # initial estimate: [height, velocity, P00, P01, P11] offsets, then the last tick's time.
     s = MakeVectorVariable(5, "offset")
     last_tick = Variable("last_tick_s")
+    # The checks' memory (zero at the start): the last usable frame's time, rejected frames and
+    # identical readings in a row, and the last reading.
+    last_usable, rejected, repeated, last_distance = (
+        Variable(n) for n in ("last_usable_s", "rejected_frames", "repeated_frames", "last_m")
+    )
     x0 = np.array([initial_height_m, 0.0])
     P0 = np.diag([config.initial_position_std_m**2, config.initial_velocity_std_m_s**2])
     x = x0 + np.array([s[0], s[1]])
@@ -160,24 +183,48 @@ def add_local_kalman_filter(
     # expressions stay small (they are re-evaluated node by node every tick). Only the output,
     # predicted to the current time, needs the symbolic interval.
     x_prior, P_prior = predict(x, P, frame_period_s, acceleration_variance_m2_s4)
-    x_post, P_post = update(x_prior, P_prior, camera_height_m - distance, measurement_variance_m2)
+    measured = camera_height_m - distance
+    x_post, P_post = update(x_prior, P_prior, measured, measurement_variance_m2)
     # Comparisons with NaN are false, so a NaN distance is never usable.
-    usable = logical_and(
+    in_range = logical_and(
         valid > 0.5, logical_and(distance >= valid_range_m[0], distance <= valid_range_m[1])
     )
+    innovation = measured - x_prior[0]
+    innovation_variance = P_prior[0, 0] + measurement_variance_m2
+    in_gate = (
+        innovation * innovation
+        <= nis_bound(detection.innovation_gate_probability) * innovation_variance
+    )
+    usable = logical_and(in_range, in_gate)
     chosen_x = [if_then_else(usable, x_post[i], x_prior[i]) for i in range(2)]
     chosen_P = [if_then_else(usable, P_post[i, j], P_prior[i, j]) for i, j in _UPPER]
     next_state = [chosen_x[i] - x0[i] for i in range(2)]
     next_state += [chosen_P[k] - P0[i, j] for k, (i, j) in enumerate(_UPPER)]
     next_state.append(Expression(t))
+    next_state += [
+        if_then_else(usable, Expression(t), Expression(last_usable)),
+        if_then_else(logical_and(in_range, logical_not(in_gate)), rejected + 1, Expression(0.0)),
+        if_then_else(logical_and(valid > 0.5, distance == last_distance), repeated + 1, 0.0),
+        if_then_else(valid > 0.5, Expression(distance), Expression(last_distance)),
+    ]
 
+    frame_rate_hz = 1.0 / frame_period_s
+    health = [
+        if_then_else(t - last_usable > detection.stale_after_s, 1.0, 0.0),
+        if_then_else(rejected >= frames_in(detection.rejecting_after_s, frame_rate_hz), 1.0, 0.0),
+        if_then_else(repeated >= frames_in(detection.stuck_after_s, frame_rate_hz), 1.0, 0.0),
+    ]
     x_now, P_now = predict(x, P, t - last_tick, acceleration_variance_m2_s4)
     return add_named_symbolic_system(
         builder,
         name,
         inputs=[("distance_m", [distance]), ("valid", [valid])],
-        outputs=[("estimated_state", list(x_now)), ("covariance", list(P_now.flatten()))],
-        state=list(s) + [last_tick],
+        outputs=[
+            ("estimated_state", list(x_now)),
+            ("covariance", list(P_now.flatten())),
+            ("health", health),
+        ],
+        state=[*s, last_tick, last_usable, rejected, repeated, last_distance],
         dynamics=next_state,
         time=t,
         time_period=frame_period_s,

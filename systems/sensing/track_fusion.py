@@ -3,12 +3,18 @@
 P_F = (Σ P_s⁻¹)⁻¹ and x_F = P_F Σ P_s⁻¹ x_s: the variance-weighted average of the local tracks,
 which treats their errors as independent (the paper's assumption; the tracks share the process
 noise, so P_F is optimistic, which the recorded errors let a user check).
+
+A track its filter flags (``fault_detection``) is left out: its covariance is inflated by
+``EXCLUDED_VARIANCE`` before it is fused, which gives it no weight, so the loop carries on with
+the others; a healthy track's covariance gets exactly 0 added, so healthy tracks are fused with
+the same arithmetic as before the checks existed (a default run records the same bytes). With
+every track flagged, their fusion's covariance is that large too, and says so.
 """
 
 from collections.abc import Sequence
 
 import numpy as np
-from pydrake.symbolic import MakeVectorVariable
+from pydrake.symbolic import Expression, MakeVectorVariable, if_then_else, logical_and
 from pydrake.systems.framework import DiagramBuilder
 
 from maskless.systems.named_symbolic_system import (
@@ -17,6 +23,10 @@ from maskless.systems.named_symbolic_system import (
     building_expressions,
     diagram_form,
 )
+from maskless.systems.sensing.fault_detection import TRACK_FLAGS, FaultDetectionConfig
+
+# Added to a flagged track's variances (m²): a weight 1e-11 of a healthy track's (~1e-5 m²).
+EXCLUDED_VARIANCE = 1.0e6
 
 
 def inverse_2x2(M):
@@ -54,7 +64,10 @@ def fuse_tracks(states: Sequence[np.ndarray], covariances: Sequence[np.ndarray])
 
 @building_expressions
 def add_track_fusion(
-    builder: DiagramBuilder, track_names: Sequence[str], name: str = "fusion"
+    builder: DiagramBuilder,
+    track_names: Sequence[str],
+    detection: FaultDetectionConfig,
+    name: str = "fusion",
 ) -> PortMap:
     """Adds the fusion site for the named local tracks to ``builder``.
 
@@ -64,40 +77,100 @@ def add_track_fusion(
         input_ports:
         - kinect_v1_estimated_state
         - kinect_v1_covariance
+        - kinect_v1_health
         - kinect_v2_estimated_state
         - kinect_v2_covariance
+        - kinect_v2_health
         output_ports:
         - estimated_state
         - covariance
+        - health
 
     Args:
         builder: where the fusion's systems go.
-        track_names: one name per local track; the inputs are ``{name}_estimated_state`` (2) and
-            ``{name}_covariance`` (4, row-major).
+        track_names: one name per local track; the inputs are ``{name}_estimated_state`` (2),
+            ``{name}_covariance`` (4, row-major) and ``{name}_health`` (``TRACK_FLAGS``).
+        detection: the disagreement and uncertainty bounds.
         name: the fusion system's name.
 
     The output is a direct function of the inputs (no state), so it always fuses the tracks as they
-    are at that instant.
+    are at that instant. ``health`` is ``FUSION_HEALTH``: the tracks used, then 1 where a flag is
+    set (the tracks disagree; the fused std is above ``max_fused_std_m``).
     """
     if not track_names:
         raise ValueError("make_track_fusion: track_names is empty; fusion needs at least one track")
-    inputs, states, covariances = [], [], []
+    inputs, states, covariances, raw_covariances, track_flags = [], [], [], [], []
     for track in track_names:
         x = MakeVectorVariable(2, f"{track}_x")
         p = MakeVectorVariable(4, f"{track}_P")
-        inputs += [(f"{track}_estimated_state", list(x)), (f"{track}_covariance", list(p))]
+        flags = MakeVectorVariable(len(TRACK_FLAGS), f"{track}_health")
+        inputs += [
+            (f"{track}_estimated_state", list(x)),
+            (f"{track}_covariance", list(p)),
+            (f"{track}_health", list(flags)),
+        ]
         states.append(np.array(list(x)))
-        covariances.append(np.array(list(p)).reshape(2, 2))
+        raw_covariances.append(np.array(list(p)).reshape(2, 2))
+        # Any flag set inflates the track out of the fusion (a sum of 0/1 flags).
+        covariances.append(raw_covariances[-1] + sum(flags) * EXCLUDED_VARIANCE * np.eye(2))
+        track_flags.append(flags)
     fused_state, fused_covariance = fuse_tracks(states, covariances)
-    return add_named_symbolic_system(
+    # With no flag set (nearly always) only Eq. 10 on the tracks as they are is evaluated: an
+    # if-then-else evaluates the branch it takes, and the controller reads this every tick.
+    all_healthy = sum(sum(flags) for flags in track_flags) < 0.5
+    plain_state, plain_covariance = fuse_tracks(states, raw_covariances)
+    chosen_state = [if_then_else(all_healthy, a, b) for a, b in _pairs(plain_state, fused_state)]
+    chosen_covariance = [
+        if_then_else(all_healthy, a, b) for a, b in _pairs(plain_covariance, fused_covariance)
+    ]
+    fusion = add_named_symbolic_system(
         builder,
         name,
         inputs=inputs,
+        outputs=[("estimated_state", chosen_state), ("covariance", chosen_covariance)],
+    )
+    # The health is a system of its own on the same input vector: only its readers (the log, a
+    # supervisor) pay for it, not the controller's every reading of the estimate.
+    used = [if_then_else(sum(flags) < 0.5, 1.0, 0.0) for flags in track_flags]
+    health = add_named_symbolic_system(
+        builder,
+        f"{name}.health",
+        inputs=[("tracks", [v for _, variables in inputs for v in variables])],
         outputs=[
-            ("estimated_state", list(fused_state)),
-            ("covariance", list(fused_covariance.flatten())),
+            (
+                "health",
+                [
+                    sum(used),
+                    _disagreement(states, covariances, used, detection.disagreement_sigmas),
+                    if_then_else(fused_covariance[0, 0] > detection.max_fused_std_m**2, 1.0, 0.0),
+                ],
+            )
         ],
     )
+    builder.Connect(
+        builder.GetSubsystemByName(f"{name}.inputs").get_output_port(), health.inputs["tracks"]
+    )
+    fusion.outputs["health"] = health.outputs["health"]
+    return fusion
+
+
+def _pairs(first: np.ndarray, second: np.ndarray):
+    """The entries of two equal-shaped arrays side by side, row-major."""
+    return zip(np.ravel(first), np.ravel(second), strict=True)
+
+
+def _disagreement(states, covariances, used, sigmas: float):
+    """1 when two healthy tracks' heights lie more than ``sigmas`` stds of their gap apart."""
+    flag = Expression(0.0)
+    for i in range(len(states)):
+        for j in range(i + 1, len(states)):
+            difference = states[i][0] - states[j][0]
+            variance = covariances[i][0, 0] + covariances[j][0, 0]
+            apart = logical_and(
+                used[i] * used[j] > 0.5, difference * difference > sigmas**2 * variance
+            )
+            flag = if_then_else(apart, 1.0, flag)
+    return flag
 
 
 make_track_fusion = diagram_form(add_track_fusion)

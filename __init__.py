@@ -36,6 +36,7 @@ _EXPORTS = {
     "KinectV2Config": "maskless.systems.sensing.depth_sensor",
     "CameraRenderingConfig": "maskless.systems.sensing.depth_sensor",
     "cameras_measured_by": "maskless.diagrams.scenario",
+    "FaultConfig": "maskless.systems.fault_injection",
     # running
     "build_closed_loop": "maskless.diagrams.closed_loop",
     "simulate": "maskless.diagrams.simulation",

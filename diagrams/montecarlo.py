@@ -94,6 +94,12 @@ _LOGGED = ("head_height_m", "reference_head_height_m")
 _IN_FLIGHT_PER_WORKER = 4
 
 
+# Building a loop (Drake's scalar conversion of the templated plant for Linearize, the symbolic
+# systems) is not safe in two threads at once: measured, two Dask threads building together made
+# a plant without its attributes. Simulating built loops in parallel threads is.
+_BUILDING = threading.Lock()
+
+
 class TrialRunner:
     """Runs one sweep's trials: one built loop per controller, reused for every trial.
 
@@ -104,21 +110,26 @@ class TrialRunner:
     def __init__(self, config: MonteCarloConfig):
         """Prepares what every trial shares; the loops are built on first use."""
         self.config = config
-        self.nominal = NominalPneumatic.of(config.scenario)
+        with _BUILDING:
+            self.nominal = NominalPneumatic.of(config.scenario)
         self._loops: dict[str, ClosedLoop] = {}
 
     def loop(self, controller: str) -> ClosedLoop:
         """The built loop of ``controller`` (built once)."""
         if controller not in self._loops:
-            scenario = sweep_scenario(self.config, levels_m=(0.0, 0.0))
-            scenario.controller = controller_from_shorthand(controller)
-            self._loops[controller] = build_closed_loop(
-                scenario,
-                record=_LOGGED,
-                nominal=self.nominal,
-                plant_context_parameters=SWEPT_PARAMETERS,
-            )
+            with _BUILDING:
+                self._loops[controller] = self._build(controller)
         return self._loops[controller]
+
+    def _build(self, controller: str) -> ClosedLoop:
+        scenario = sweep_scenario(self.config, levels_m=(0.0, 0.0))
+        scenario.controller = controller_from_shorthand(controller)
+        return build_closed_loop(
+            scenario,
+            record=_LOGGED,
+            nominal=self.nominal,
+            plant_context_parameters=SWEPT_PARAMETERS,
+        )
 
     def patient(self, trial: int, run: int = 0) -> Patient:
         """Trial ``trial``'s draws, for its ``run``-th seed."""

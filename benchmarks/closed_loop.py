@@ -117,7 +117,7 @@ def head_mass_sweep(repeats: int) -> dict:
 def command_real_time_factor(duration_s: float, repeats: int, fresh_process: bool) -> float:
     best = float("inf")
     with tempfile.TemporaryDirectory() as out:
-        args = ["simulate", "--duration", str(duration_s), "--out", out, "--json"]
+        args = ["simulate", "--duration", str(duration_s), "--out", out, "--overwrite", "--json"]
         for _ in range(repeats):
             start = time.perf_counter()
             if fresh_process:

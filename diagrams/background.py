@@ -7,24 +7,61 @@
   import matplotlib meanwhile (~0.35 s) and then plot. Child processes, not threads: a thread's
   work would hold the GIL the simulation needs.
 
+A worker never outlives its caller. Its ``connection.recv()`` raises EOFError once the caller is
+gone (killed, even by SIGKILL: the worker polls for its parent while it waits), once the caller
+calls ``stop`` (it was interrupted), or once the worker itself gets SIGTERM; a serve function
+that has something to finish (a recording's footer) catches it, the others just end. Children
+ignore SIGINT: a terminal's Ctrl-C reaches the whole process group, and the caller decides.
+
 Where fork is not the platform's safe default (macOS and Windows), the work simply runs in the
-caller: a task at once, a worker's serve function when the caller waits for it.
+caller: a task at once, a worker's serve function when the caller waits for it or stops it.
 """
 
 import multiprocessing
+import os
+import signal
 import sys
+import weakref
 from collections.abc import Callable
 
 _FORK_IS_SAFE = sys.platform.startswith("linux")
+# How often a waiting worker checks that its parent is still there (s).
+_PARENT_POLL_S = 0.2
+# The exit code of a worker that ended early, stopped or orphaned.
+STOPPED_EXIT_CODE = 3
+
+# Every live worker's sending end. A child closes its copies at once, so that a worker's pipe
+# ends (EOF) when its caller dies, whatever was forked after it.
+_SENDERS: weakref.WeakSet = weakref.WeakSet()
+# Set in a worker by SIGTERM: its next wait for a message ends as if the caller were gone.
+_stop_requested = False
+
+
+def _request_stop(signum, frame) -> None:
+    global _stop_requested
+    _stop_requested = True
+
+
+def _in_child(is_worker: bool, target: Callable, *args) -> None:
+    """Runs ``target(*args)`` in a forked child, set up as the module docstring says."""
+    for sender in list(_SENDERS):
+        sender.close()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # Not the handler a CLI parent may have set (it raises there): a task just ends.
+    signal.signal(signal.SIGTERM, _request_stop if is_worker else signal.SIG_DFL)
+    try:
+        target(*args)
+    except EOFError:  # its caller is gone or stopped it: nothing to report
+        sys.exit(STOPPED_EXIT_CODE)
 
 
 class _Child:
     """A forked child process; ``wait`` joins it and reports a failure."""
 
-    def __init__(self, description: str, target: Callable, *args):
+    def __init__(self, description: str, is_worker: bool, target: Callable, *args):
         self._description = description
         self._process = multiprocessing.get_context("fork").Process(
-            target=target, args=args, daemon=True
+            target=_in_child, args=(is_worker, target, *args), daemon=True
         )
         self._process.start()
 
@@ -41,6 +78,10 @@ class _Child:
                 f"(exit code {self._process.exitcode}; its traceback is on stderr above)"
             )
 
+    def join(self) -> None:
+        """Blocks until the child ends, whatever its exit code."""
+        self._process.join()
+
 
 class BackgroundTask:
     """``function(*args)`` running in a forked child from now on."""
@@ -53,7 +94,7 @@ class BackgroundTask:
             function: the work.
             *args: its arguments.
         """
-        self._child = _Child(description, function, *args) if _FORK_IS_SAFE else None
+        self._child = _Child(description, False, function, *args) if _FORK_IS_SAFE else None
         if self._child is None:
             function(*args)
 
@@ -63,22 +104,50 @@ class BackgroundTask:
             self._child.wait()
 
 
-class _Replay:
-    """What a serve function reads where no child runs: the objects sent, then None."""
+class _Stop:
+    """What ``Worker.stop`` sends: the worker's ``recv`` raises EOFError on it."""
 
-    def __init__(self, objects: list):
-        self._objects = iter([*objects, None])
+
+class _Replay:
+    """What a serve function reads where no child runs: the objects sent, then the end."""
+
+    def __init__(self, objects: list, stopped: bool):
+        self._objects = iter(objects)
+        self._stopped = stopped
 
     def recv(self):
-        return next(self._objects)
+        message = next(self._objects, None)
+        if message is None and self._stopped:
+            raise EOFError("the caller stopped")
+        return message
+
+
+class _FromParent:
+    """A worker's end of its pipe: ``recv`` raises EOFError once the caller is gone or stops."""
+
+    def __init__(self, connection, parent_pid: int):
+        self._connection, self._parent_pid = connection, parent_pid
+
+    def recv(self):
+        # What was sent is read first: a stop request takes effect only when nothing is waiting.
+        while not self._connection.poll(_PARENT_POLL_S):
+            # A dead parent's child is adopted by another process (init or a subreaper).
+            if _stop_requested or os.getppid() != self._parent_pid:
+                raise EOFError("the caller is gone")
+        try:
+            message = self._connection.recv()
+        except OSError:  # the caller died half-way through a message
+            raise EOFError("the caller is gone") from None
+        if isinstance(message, _Stop):
+            raise EOFError("the caller stopped")
+        return message
 
 
 class Worker:
     """A forked child running ``serve(connection, *args)``, fed the objects ``send`` passes.
 
-    The child reads them with ``connection.recv()``, then None once the caller is done. (An end
-    marker, not the pipe's end: a child forked later holds a copy of the pipe, so closing it ends
-    nothing.)
+    The child reads them with ``connection.recv()``: None once the caller is done (``wait``), or
+    EOFError if the caller stops it or is gone (see the module docstring).
     """
 
     def __init__(self, description: str, serve: Callable, *args):
@@ -92,9 +161,12 @@ class Worker:
         self._serve, self._args = serve, args
         self._child = None
         self._unsent: list = []
+        self._ended = False
         if _FORK_IS_SAFE:
             receiver, self._sender = multiprocessing.get_context("fork").Pipe(duplex=False)
-            self._child = _Child(description, serve, receiver, *args)
+            _SENDERS.add(self._sender)
+            parent = _FromParent(receiver, os.getpid())
+            self._child = _Child(description, True, serve, parent, *args)
             receiver.close()
 
     def send(self, message) -> None:
@@ -116,12 +188,31 @@ class Worker:
         Raises:
             RuntimeError: the child failed or was killed.
         """
+        if self._end(None):
+            self._child.wait()
+
+    def stop(self) -> None:
+        """Tells the child to end early (its ``recv`` raises EOFError) and blocks until it ends.
+
+        For a caller that was interrupted; a worker already waited for or stopped is left alone.
+        """
+        if self._end(_Stop()):
+            self._child.join()
+
+    def _end(self, last_message) -> bool:
+        """Sends the last message once; True if there is a child to wait for."""
+        if self._ended:
+            return False
+        self._ended = True
         if self._child is None:
-            self._serve(_Replay(self._unsent), *self._args)
-            return
-        self.send(None)
+            try:
+                self._serve(_Replay(self._unsent, stopped=last_message is not None), *self._args)
+            except EOFError:  # stopped: as a child would, it just ends
+                pass
+            return False
+        self.send(last_message)
         self._sender.close()
-        self._child.wait()
+        return True
 
 
 def serve_calls(connection, warm_up: Callable[[], None]) -> None:

@@ -19,11 +19,12 @@ from pydrake.systems.primitives import ConstantVectorSource
 from maskless.analysis.metrics import estimate_error_std_m
 from maskless.diagrams.closed_loop import ClosedLoop, LoopDrive, add_plant, assemble_loop
 from maskless.diagrams.controller_design import NominalPneumatic
+from maskless.diagrams.output_folder import RunFolder
 from maskless.diagrams.request_labels import LabelledRequest
 from maskless.diagrams.run_summary import estimation_start_s
 from maskless.diagrams.scenario import PneumaticPlant, Scenario, kind_name
 from maskless.diagrams.scenario_plant import inlet_current_range_a
-from maskless.diagrams.simulation import SimulationRun, simulate_loop
+from maskless.diagrams.simulation import RUN_FILES, SimulationRun, simulate_loop
 from maskless.errors import ConfigError
 from maskless.systems.control.excitation import (
     ExcitationSignal,
@@ -127,6 +128,31 @@ def excite(scenario: Scenario, request: ExcitationRequest) -> ExcitationRun:
             with no line of the frequency grid, or an excitation that clipping to the inlet's
             range leaves constant.
     """
+    return _plan_experiment(scenario, request).run()
+
+
+@dataclass(frozen=True)
+class _Experiment:
+    """An excitation designed and checked, not yet run (``excite``'s two halves)."""
+
+    scenario: Scenario
+    designed: ExcitationSignal
+    applied: ExcitationSignal
+    amplitude_a: float
+    offset_a: float
+    valve_range_a: tuple[float, float]
+
+    def run(self) -> ExcitationRun:
+        """Simulates the experiment and summarises it."""
+        run = simulate_loop(build_excitation_loop(self.scenario, self.applied), self.scenario)
+        summary = excitation_summary(
+            self.designed, self.applied, self.amplitude_a, self.offset_a, self.valve_range_a, run
+        )
+        return ExcitationRun(run, self.designed, self.applied, summary)
+
+
+def _plan_experiment(scenario: Scenario, request: ExcitationRequest) -> _Experiment:
+    """The experiment ``request`` asks for, designed and checked (raises as ``excite``)."""
     start_a, saturation_a = inlet_current_range_a(scenario)
     valve_range_a = (0.0, saturation_a)
     offset_a = 0.5 * (start_a + saturation_a) if request.offset_a is None else request.offset_a
@@ -161,27 +187,34 @@ def excite(scenario: Scenario, request: ExcitationRequest) -> ExcitationRun:
             f"{a_to_ma(valve_range_a[1]):g}] mA nothing of the excitation is left"
         )
     experiment = dataclasses.replace(scenario, duration_s=request.duration_s)
-    run = simulate_loop(build_excitation_loop(experiment, applied), experiment)
-    summary = excitation_summary(
-        designed, applied, request.amplitude_a, offset_a, valve_range_a, run
-    )
-    return ExcitationRun(run, designed, applied, summary)
+    return _Experiment(experiment, designed, applied, request.amplitude_a, offset_a, valve_range_a)
 
 
-def excite_to_files(scenario: Scenario, request: ExcitationRequest, out: str | Path) -> dict:
+def excite_to_files(
+    scenario: Scenario, request: ExcitationRequest, out: str | Path, *, overwrite: bool = False
+) -> dict:
     """``excite``, writing OUT/run.mcap and OUT/run.png (``maskless excite``).
 
     With rendered cameras, the recording holds their images and OUT/frames.png shows each
     camera's first and last one. Returns the summary with the files written (``files``).
+
+    The request is checked, then OUT claimed as ``simulate_to_files`` claims it (refused when in
+    use or, unless ``overwrite``, holding a run), both before anything is simulated; the files
+    are written under temporary names and renamed when all are written.
+
+    Raises:
+        ConfigError: as ``excite``, or OUT refused.
     """
-    experiment = excite(scenario, request)
-    out = Path(out)
-    mcap_path = experiment.run.write_mcap(out / "run.mcap")
-    png_path = experiment.run.plot(out / "run.png", show_tolerance=False)
-    files = {"recording": str(mcap_path), "plot": str(png_path)}
-    if experiment.run.frames:
-        files["frames"] = str(experiment.run.plot_frames(out / "frames.png"))
-    return {**experiment.summary, "files": files}
+    experiment = _plan_experiment(scenario, request)
+    with RunFolder(out, RUN_FILES, overwrite=overwrite) as folder:
+        excited = experiment.run()
+        excited.run.write_mcap(folder.temporary("run.mcap"))
+        excited.run.plot(folder.temporary("run.png"), show_tolerance=False)
+        files = {"recording": "run.mcap", "plot": "run.png"}
+        if excited.run.frames:
+            excited.run.plot_frames(folder.temporary("frames.png"))
+            files["frames"] = "frames.png"
+    return {**excited.summary, "files": folder.final_paths(files)}
 
 
 def build_excitation_loop(

@@ -24,7 +24,7 @@ from maskless.diagrams.closed_loop import (
     logged_signals,
     set_plant_parameters,
 )
-from maskless.diagrams.output_folder import output_file, output_folder
+from maskless.diagrams.output_folder import RunFolder, output_file
 from maskless.diagrams.run_recording import signal_channels
 from maskless.diagrams.run_summary import summarize, summary_with_timing
 from maskless.diagrams.scenario import Scenario
@@ -212,16 +212,37 @@ def simulate_loop(
     )
 
 
-def simulate_to_files(scenario: Scenario, out: str | Path) -> dict:
+# The files a run (`maskless simulate`, `maskless excite`) may write into its folder.
+RUN_FILES = ("run.mcap", "run.png", "frames.png")
+
+
+def simulate_to_files(scenario: Scenario, out: str | Path, *, overwrite: bool = False) -> dict:
     """Simulates ``scenario``, writing OUT/run.mcap and OUT/run.png (``maskless simulate``).
 
     With rendered cameras, the recording holds their images too and OUT/frames.png shows each
     camera's first and last recorded frame. The recording is written while the loop runs, the
     plots after. Runs of 10 minutes or more report progress on stderr.
 
+    OUT is claimed before anything is simulated (``output_folder.RunFolder``): it is refused
+    when another run is writing it, or, unless ``overwrite``, when it holds a run's files. The
+    files are written as run.partial.mcap, ... and renamed when the run succeeds. A run that
+    raises (the CLI turns SIGINT and SIGTERM into KeyboardInterrupt) or whose process is killed
+    leaves run.partial.mcap finished with its footer and marked as cut.
+
     Returns:
         The run's metrics with its timing and the files written (``files``).
+
+    Raises:
+        ConfigError: OUT refused, naming it or the file in the way.
     """
+    with RunFolder(out, RUN_FILES, overwrite=overwrite) as folder:
+        summary = _simulate_into(scenario, folder)
+    summary["files"] = folder.final_paths(summary["files"])
+    return summary
+
+
+def _simulate_into(scenario: Scenario, folder: RunFolder) -> dict:
+    """``simulate_to_files``'s run, into ``folder``'s temporaries; ``files`` by final name."""
     from maskless.analysis.camera_frames_plot import plot_camera_frames
     from maskless.analysis.closed_loop_plots import plot_closed_loop, prepare_plotting
     from maskless.diagrams.background import Worker, serve_calls
@@ -230,8 +251,7 @@ def simulate_to_files(scenario: Scenario, out: str | Path) -> dict:
     def report_progress(simulated_s, duration_s):
         print(f"simulated {simulated_s:.0f} / {duration_s:.0f} s", file=sys.stderr, flush=True)
 
-    out = output_folder(out)
-    mcap_path, png_path = out / "run.mcap", out / "run.png"
+    mcap_path, png_path = folder.temporary("run.mcap"), folder.temporary("run.png")
     camera_names = list(scenario.cameras)
     rendered = rendered_camera_names(scenario)
     # The second core works while the loop runs: one worker writes the recording as the samples
@@ -239,23 +259,30 @@ def simulate_to_files(scenario: Scenario, out: str | Path) -> dict:
     recorder = Worker(f"writing {mcap_path}", write_recording_batches, mcap_path, rendered)
     plotter = Worker(f"plotting {png_path}", serve_calls, prepare_plotting)
     long_run = scenario.duration_s >= _PROGRESS_MIN_DURATION_S
-    run = simulate(
-        scenario,
-        progress=report_progress if long_run else None,
-        on_chunk=lambda signals, frames: recorder.send(
-            (signal_channels(signals, camera_names), frames)
-        ),
-        keep_all_frames=False,
-    )
-    plotter.send((plot_closed_loop, (png_path,), run.plot_arguments()))
-    files = {"recording": str(mcap_path), "plot": str(png_path)}
-    if rendered:
-        frames_path = out / "frames.png"
-        plotter.send((plot_camera_frames, (frames_path, run.first_and_last_frames()), {}))
-        files["frames"] = str(frames_path)
-    summary = summary_with_timing(run)
-    recorder.wait()
-    plotter.wait()
+    try:
+        run = simulate(
+            scenario,
+            progress=report_progress if long_run else None,
+            on_chunk=lambda signals, frames: recorder.send(
+                (signal_channels(signals, camera_names), frames)
+            ),
+            keep_all_frames=False,
+        )
+        plotter.send((plot_closed_loop, (png_path,), run.plot_arguments()))
+        files = {"recording": "run.mcap", "plot": "run.png"}
+        if rendered:
+            frames_path = folder.temporary("frames.png")
+            plotter.send((plot_camera_frames, (frames_path, run.first_and_last_frames()), {}))
+            files["frames"] = "frames.png"
+        summary = summary_with_timing(run)
+        recorder.wait()
+        plotter.wait()
+    except BaseException:
+        # Stopped or failed: the recording so far is finished with its footer, and no worker
+        # outlives the run.
+        recorder.stop()
+        plotter.stop()
+        raise
     summary["files"] = files
     return summary
 

@@ -25,6 +25,7 @@ from pathlib import Path
 from maskless.analysis.identification.report import EXPLAINS_VERDICT
 from maskless.diagrams.excitation_run import ExcitationRequest, excite_to_files
 from maskless.diagrams.identification_run import IdentificationRequest, identify_to_files
+from maskless.diagrams.output_folder import RunFolder
 from maskless.diagrams.run_summary import tracking_lines
 from maskless.diagrams.scenario import (
     OffsetFreeLqg,
@@ -32,7 +33,7 @@ from maskless.diagrams.scenario import (
     shorthand,
     validate_scenario,
 )
-from maskless.diagrams.simulation import simulate_to_files
+from maskless.diagrams.simulation import RUN_FILES, simulate_to_files
 from maskless.errors import ConfigError
 from maskless.systems.units import a_to_ma
 
@@ -44,7 +45,7 @@ DEFAULT_EXCITATION = ExcitationRequest(
 
 
 def excite_command(request: ExcitationRequest, seed: int, config: Path | None, out: Path) -> str:
-    """The `maskless excite` command line that runs ``request``."""
+    """The `maskless excite` command line that runs ``request`` again, over the workflow's run."""
     argv = ["--signal", request.signal, "--amplitude", repr(a_to_ma(request.amplitude_a))]
     if request.offset_a is not None:
         argv += ["--offset", repr(a_to_ma(request.offset_a))]
@@ -53,7 +54,7 @@ def excite_command(request: ExcitationRequest, seed: int, config: Path | None, o
         argv += ["--period", repr(request.sample_period_s)]
     if request.band_hz is not None:
         argv += ["--band", f"{request.band_hz[0]!r}:{request.band_hz[1]!r}"]
-    return "maskless excite " + shlex.join([*argv, "--out", str(out), *_common(seed, config)])
+    return "maskless excite " + shlex.join([*argv, *_common(seed, config, out)])
 
 
 def identify_command(request: IdentificationRequest, out: Path) -> str:
@@ -67,13 +68,15 @@ def identify_command(request: IdentificationRequest, out: Path) -> str:
 
 
 def simulate_command(scenario_flags: dict, seed: int, config: Path | None, out: Path) -> str:
-    """The `maskless simulate` command line with ``scenario_flags`` (flag -> value)."""
+    """The `maskless simulate` command line with ``scenario_flags`` (flag -> value), run again."""
     argv = [word for flag, value in scenario_flags.items() for word in (flag, value)]
-    return "maskless simulate " + shlex.join([*argv, "--out", str(out), *_common(seed, config)])
+    return "maskless simulate " + shlex.join([*argv, *_common(seed, config, out)])
 
 
-def _common(seed: int, config: Path | None) -> list[str]:
-    return ["--seed", str(seed)] + ([] if config is None else ["--config", str(config)])
+def _common(seed: int, config: Path | None, out: Path) -> list[str]:
+    # --overwrite: the printed command redoes a stage whose files the workflow wrote.
+    out_flags = ["--out", str(out), "--overwrite"]
+    return [*out_flags, "--seed", str(seed)] + ([] if config is None else ["--config", str(config)])
 
 
 def run_workflow(
@@ -86,6 +89,7 @@ def run_workflow(
     config: str | Path | None = None,
     echo: Callable[[str], None] = print,
     labels: dict[str, str] | None = None,
+    overwrite: bool = False,
 ) -> dict:
     """Runs the three stages into ``out`` and returns their summaries.
 
@@ -98,9 +102,11 @@ def run_workflow(
         config: a scenario YAML overriding the shipped one, for both simulations.
         echo: called with each stage's equivalent command line (and a warning, if any).
         labels: argument -> what the user calls it (a flag), for messages.
+        overwrite: replace an earlier workflow's excitation and closed-loop runs in ``out``.
 
     Raises:
-        ConfigError: a bad duration or order (before anything runs), or a bad scenario.
+        ConfigError: a bad duration or order, a refused excitation/ or closed_loop/ folder
+            (``output_folder.RunFolder``; all before anything runs), or a bad scenario.
     """
     out = Path(out)
     config = None if config is None else Path(config)
@@ -116,8 +122,10 @@ def run_workflow(
         )
     scenario = scenario_with_overrides(config, {"random_seed": seed}, labels)
     seed = scenario.random_seed
+    for stage in ("excitation", "closed_loop"):
+        RunFolder(out / stage, RUN_FILES, overwrite=overwrite).check()
     echo(excite_command(excitation, seed, config, out / "excitation"))
-    excited = excite_to_files(scenario, excitation, out / "excitation")
+    excited = excite_to_files(scenario, excitation, out / "excitation", overwrite=overwrite)
     identification = IdentificationRequest(
         input=Path(excited["files"]["recording"]),
         ts=excited["sample_period_s"],
@@ -142,7 +150,7 @@ def run_workflow(
     flags = {"--controller": shorthand(controller), "--duration": repr(closed_loop_s)}
     echo(simulate_command(flags, seed, config, out / "closed_loop"))
     validate_scenario(closed_loop_scenario)  # the model file identify wrote
-    closed_loop = simulate_to_files(closed_loop_scenario, out / "closed_loop")
+    closed_loop = simulate_to_files(closed_loop_scenario, out / "closed_loop", overwrite=overwrite)
     return {
         "excitation": excited,
         "identification": {

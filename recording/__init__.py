@@ -17,7 +17,10 @@ numpy scalars once per message.
 
 Files are written *unchunked*: each message is a record of its own on disk. That costs a little
 space, but a file whose writer died (or that was cut at any byte) can be read back up to its last
-complete message, which a chunked file cannot promise (a whole chunk would be lost).
+complete message, which a chunked file cannot promise (a whole chunk would be lost). A writer
+whose run stops early but which can still finish its file (``write_recording_batches`` when its
+caller is gone) adds a ``maskless.cut`` Metadata record before the footer: the file is whole to
+any MCAP reader, and ``read_recording`` reports it as truncated.
 
 Topics and fields (format version 2). A field is named after the Drake output port its values come
 from (``diagrams.closed_loop.export_and_log``), so a signal has one name from the diagram to the

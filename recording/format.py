@@ -21,6 +21,8 @@ PROFILE = ""
 
 # The format version every schema's name ends in (".v2"); a schema name without one is version 1.
 SCHEMA_VERSION = 2
+# The Metadata record a recording cut short ends with, before its footer (``RecordingWriter``).
+CUT_METADATA = "maskless.cut"
 
 REFERENCE_TOPIC = "/reference"
 HEAD_HEIGHT_TOPIC = "/plant/head_height"

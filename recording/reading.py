@@ -18,6 +18,7 @@ from google.protobuf.message import DecodeError
 from mcap.exceptions import EndOfFile, McapError
 from mcap.records import Channel as McapChannel
 from mcap.records import Message as McapMessage
+from mcap.records import Metadata as McapMetadata
 from mcap.records import Schema as McapSchema
 from mcap.stream_reader import StreamReader
 
@@ -27,6 +28,7 @@ from maskless.recording.format import (
     _BOOLEAN,
     _SCHEMA_NAME,
     CAMERA_MESSAGE_ENCODING,
+    CUT_METADATA,
     MESSAGE_ENCODING,
     SCHEMA_VERSION,
     _v1_renames,
@@ -45,7 +47,8 @@ class Recording:
         messages: Topic -> list of ``(log_time_ns, payload)`` in file order. Topics that were
             recorded without messages map to an empty list.
         truncated: True if the file ended (or broke) before its footer, so only the messages up
-            to the last complete one are present.
+            to the last complete one are present, or if its run was cut short and the file
+            finished with what it had (a ``*.partial.mcap`` a stopped run left).
     """
 
     messages: dict[str, list[tuple[int, dict[str, Any]]]] = field(default_factory=dict)
@@ -126,7 +129,9 @@ def read_recording(path: str | PathLike[str], topics: Collection[str] | None = N
     The file is read front to back with a streaming reader (no index or footer needed). At the
     first error after the magic bytes (a cut, or a corrupt record) reading stops, ``truncated`` is
     set and a ``TruncatedRecordingWarning`` names the file and the number of messages recovered.
-    Every message returned is complete. A file shorter than the magic whose bytes match it (a
+    Every message returned is complete. A file whose run was cut short but which was finished
+    with its footer (it holds a ``maskless.cut`` Metadata record) reads whole, and is reported
+    the same way. A file shorter than the magic whose bytes match it (a
     writer that died at once) reads as an empty, truncated recording. Camera frames (protobuf
     topics) are passed over; ``read_camera_frames`` reads them.
 
@@ -153,6 +158,8 @@ def read_recording(path: str | PathLike[str], topics: Collection[str] | None = N
     if records.error is not None:
         recording.truncated = True
         _warn_truncated(path, records.error, f"{count} complete messages")
+    elif recording.truncated:
+        _warn_truncated(path, EndOfFile("its run was cut short"), f"{count} complete messages")
     return recording
 
 
@@ -243,6 +250,8 @@ def _read_json_messages(
             channel = _read_channel(record, schemas.get(record.schema_id), path)
             channels[record.id] = channel
             recording.messages.setdefault(channel.topic, [])
+        elif isinstance(record, McapMetadata) and record.name == CUT_METADATA:
+            recording.truncated = True
         elif isinstance(record, McapMessage):
             count += 1
             if record.channel_id in passed_over:

@@ -14,6 +14,7 @@ from maskless.camera_images import CameraFrame
 from maskless.recording.encoding import Channel, _Batch, _camera_topics, _checked_frames
 from maskless.recording.format import (
     CAMERA_MESSAGE_ENCODING,
+    CUT_METADATA,
     LIBRARY,
     MESSAGE_ENCODING,
     PROFILE,
@@ -61,8 +62,10 @@ class RecordingWriter:
 
     Use it as a context manager. Leaving the block normally writes the footer; leaving it on an
     error closes the file without one, so ``read_recording`` reads what was written and reports
-    the recording as cut off. Messages are identical to ``write_recording``'s for the same samples
-    and frames in one batch (given the cameras in the order of their first frames).
+    the recording as cut off. A run that ends early but can still finish its file calls
+    ``mark_cut`` first: the file is whole (any MCAP reader reads it) and says it was cut. Messages
+    are identical to ``write_recording``'s for the same samples and frames in one batch (given the
+    cameras in the order of their first frames).
     """
 
     def __init__(
@@ -178,6 +181,14 @@ class RecordingWriter:
         if batch.times:
             self._last_time_ns = batch.times[-1]
 
+    def mark_cut(self, reason: str) -> None:
+        """Records that the run ended early, for ``reason``, after the messages written so far.
+
+        ``read_recording`` reports such a file as truncated, like one cut before its footer.
+        """
+        last = "none" if self._last_time_ns is None else str(self._last_time_ns)
+        self._writer.add_metadata(CUT_METADATA, {"reason": reason, "last_log_time_ns": last})
+
     def __enter__(self) -> RecordingWriter:
         """Returns the writer itself."""
         return self
@@ -199,15 +210,20 @@ def write_recording_batches(
     A ``background.Worker``'s serve function (``Worker(..., write_recording_batches, path,
     cameras)``). A batch is a list of channels, as for ``RecordingWriter.write``, or a pair
     ``(channels, frames)`` when it carries frames of ``cameras``; the first batch's channels name
-    the topics. If the sender goes away first (EOFError), the file is left without its footer:
-    cut off, and readable up to the last batch.
+    the topics. If the sender goes away or stops first (EOFError), the batches received are
+    finished as a whole file marked as cut (``RecordingWriter.mark_cut``); before the first one,
+    no file is written.
     """
     batch = connection.recv()
     channels, _ = _channels_and_frames(batch)
     with RecordingWriter(path, [channel.topic for channel in channels], cameras) as writer:
         while batch is not None:
             writer.write(*_channels_and_frames(batch))
-            batch = connection.recv()
+            try:
+                batch = connection.recv()
+            except EOFError:
+                writer.mark_cut("the run ended before its last batch")
+                return
 
 
 def _channels_and_frames(batch) -> tuple[Sequence[Channel], Sequence[CameraFrame]]:

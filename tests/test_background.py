@@ -76,3 +76,29 @@ def test_a_worker_whose_warm_up_failed_is_reported_by_wait_not_by_send(tmp_path)
     with pytest.raises(RuntimeError, match="warming up failed.*exit code 5"):
         worker.wait()
     assert not (tmp_path / "never.txt").exists()
+
+
+def record_until_the_end(connection, path):
+    received = []
+    try:
+        while (message := connection.recv()) is not None:
+            received.append(message)
+    except EOFError:
+        received.append("cut")
+    path.write_text(repr(received))
+
+
+def test_a_stopped_worker_sees_eof_after_what_was_sent(tmp_path):
+    target = tmp_path / "out.txt"
+    worker = Worker("collecting", record_until_the_end, target)
+    worker.send(1)
+    worker.stop()
+    assert target.read_text() == "[1, 'cut']"
+    worker.stop()  # once is enough
+    worker.wait()
+
+
+def test_a_stopped_call_worker_ends_quietly_and_wait_after_it_is_a_no_op():
+    worker = Worker("idle", serve_calls, lambda: None)
+    worker.stop()
+    worker.wait()

@@ -1,14 +1,15 @@
 """The CLI's own pieces: one parser per command, built lazily, and flags turned into a scenario.
 
-The scenario names only the flags given.
+The scenario names only the flags given. SIGINT and SIGTERM stop a command with one line.
 """
 
 import argparse
+import signal
 import sys
 
 import pytest
 
-from maskless.diagrams.cli import build_parser, scenario_from_flags
+from maskless.diagrams.cli import build_parser, main, scenario_from_flags
 from maskless.diagrams.scenario import IdentifiedPlant, PaperLqg
 from maskless.errors import ConfigError
 
@@ -56,3 +57,31 @@ def test_an_error_names_the_flags_given_and_no_other():
         )
     assert "command line (--duration)" in str(raised.value)
     assert "--seed" not in str(raised.value)
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_stops_a_command_with_one_line_and_its_exit_code(signum, monkeypatch, capsys):
+    def stopped(args):
+        try:
+            signal.raise_signal(signum)  # handled at once, in this (the main) thread
+        except KeyboardInterrupt as stop:
+            stop.add_note("what the run wrote is in out/run.partial.mcap")
+            raise
+        raise AssertionError("the signal did not stop the command")
+
+    def unhandled(signum, frame):
+        raise RuntimeError("the command left the signal to the test")  # not the test's end
+
+    monkeypatch.setattr("maskless.diagrams.commands.simulate.run_command", stopped)
+    previous = signal.signal(signal.SIGTERM, unhandled)
+    try:
+        code = main(["simulate"])
+    except KeyboardInterrupt:
+        pytest.fail("KeyboardInterrupt escaped the command")
+    finally:
+        assert signal.signal(signal.SIGTERM, previous) is unhandled  # the command's handler went
+    assert code == 128 + signum
+    assert capsys.readouterr().err == (
+        f"maskless simulate: stopped by {signum.name}; what the run wrote is in "
+        "out/run.partial.mcap\n"
+    )

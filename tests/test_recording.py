@@ -943,3 +943,29 @@ def test_a_camera_topic_of_another_schema_or_undecodable_is_refused_naming_file_
     _write_camera_topic(broken, "/cameras/kinect_v1/image", CompressedImage, b"\xff")
     with pytest.raises(RecordError, match=r"broken\.mcap: topic '/cameras/kinect_v1/image'"):
         read_camera_frames(broken)
+
+
+class _CutConnection(_Connection):
+    """A worker's connection whose caller goes away after the batches: EOFError, not None."""
+
+    def recv(self):
+        batch = super().recv()
+        if batch is None:
+            raise EOFError("the caller is gone")
+        return batch
+
+
+def test_a_worker_whose_caller_goes_away_finishes_the_file_marked_as_cut(tmp_path):
+    channels = _make_channels(seed=3)
+    early, _ = _split_at(channels, 200 * MS)
+    path = tmp_path / "cut.mcap"
+    write_recording_batches(_CutConnection([early]), path)
+    # Whole to the standard reader (summary and footer), holding the batches received.
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        assert reader.get_summary() is not None
+        assert sum(1 for _ in reader.iter_messages()) == sum(c.times_ns.size for c in early)
+    with pytest.warns(TruncatedRecordingWarning, match="its run was cut short"):
+        recording = read_recording(path)
+    assert recording.truncated
+    assert sum(len(m) for m in recording.messages.values()) == sum(c.times_ns.size for c in early)

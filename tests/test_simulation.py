@@ -1,9 +1,18 @@
-"""maskless simulate: recording, plot and summary; the streamed recording is the one-shot one."""
+"""maskless simulate: recording, plot and summary; the streamed recording is the one-shot one.
+
+A run stopped by a signal or killed leaves no process behind and a recording any MCAP reader
+reads; a folder holding a run is refused before anything is simulated.
+"""
 
 import json
+import signal
+import subprocess
+import sys
+import time
 
 import pytest
 from camera_frames import face_frame
+from mcap.reader import make_reader
 
 from maskless.diagrams.cli import main
 from maskless.diagrams.scenario import (
@@ -12,7 +21,12 @@ from maskless.diagrams.scenario import (
     plant_from_shorthand,
 )
 from maskless.diagrams.simulation import first_and_last_frames, simulate
-from maskless.recording import read_camera_frames, read_recording, write_recording
+from maskless.recording import (
+    TruncatedRecordingWarning,
+    read_camera_frames,
+    read_recording,
+    write_recording,
+)
 
 
 def test_simulate_writes_recording_plot_and_json_summary(tmp_path, capsys):
@@ -133,7 +147,7 @@ def test_sensors_model_turns_a_rendered_config_back_to_the_formulas(tmp_path, ca
     assert main([*args, "--sensors", "model", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert "frames" not in summary["files"]
-    assert main([*args, "--json"]) == 0
+    assert main([*args, "--json", "--overwrite"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert list(read_camera_frames(tmp_path / "run.mcap")) == ["kinect_v1"]
 
@@ -149,3 +163,88 @@ def test_a_streaming_run_keeps_each_cameras_first_and_last_frame():
         ("a", 0.3),
         ("b", 0.3),
     ]
+
+
+def _simulation_stopped_by(signum, out, stderr_path):
+    """The exit code of a long `maskless simulate` sent ``signum`` once it has recorded a while.
+
+    Its two workers are gone within 5 s, or the test fails.
+    """
+    psutil = pytest.importorskip("psutil")
+    command = [sys.executable, "-m", "maskless.diagrams.cli", "simulate", "--duration", "3600"]
+    with open(stderr_path, "w") as stderr:
+        # Not a pipe: a worker that outlived the command would hold it open.
+        process = subprocess.Popen(
+            [*command, "--out", str(out)], stdout=subprocess.DEVNULL, stderr=stderr
+        )
+    partial = out / "run.partial.mcap"
+    deadline = time.monotonic() + 60
+    while not (partial.exists() and partial.stat().st_size > 100_000):
+        assert time.monotonic() < deadline and process.poll() is None, "no recording came"
+        time.sleep(0.05)
+    workers = psutil.Process(process.pid).children(recursive=True)
+    assert len(workers) == 2  # the recorder and the plotter
+    process.send_signal(signum)
+    code = process.wait(timeout=30)
+    _, alive = psutil.wait_procs(workers, timeout=5)
+    for orphan in alive:  # the test fails, and leaves nothing running behind it
+        orphan.kill()
+    assert not alive, f"workers {[p.pid for p in alive]} outlived the command"
+    return code
+
+
+def _messages_the_mcap_library_reads(path) -> int:
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        assert reader.get_summary() is not None  # the footer and summary are there
+        return sum(1 for _ in reader.iter_messages())
+
+
+def test_a_killed_simulation_leaves_no_process_and_a_whole_partial_recording(tmp_path, capsys):
+    out = tmp_path / "killed"
+    code = _simulation_stopped_by(signal.SIGKILL, out, tmp_path / "stderr.txt")
+    assert code == -signal.SIGKILL
+    assert not (out / "run.mcap").exists()
+    assert _messages_the_mcap_library_reads(out / "run.partial.mcap") > 1000
+    with pytest.warns(TruncatedRecordingWarning, match="cut short"):
+        assert read_recording(out / "run.partial.mcap").truncated
+    # The killed run's lock is taken over; its recording is a run's file like any other.
+    assert main(["simulate", "--duration", "1", "--out", str(out)]) == 2
+    assert "run.partial.mcap: an earlier run's file is there" in capsys.readouterr().err
+    assert main(["simulate", "--duration", "1", "--out", str(out), "--overwrite"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["run.mcap", "run.png"]
+
+
+def test_a_terminated_simulation_says_so_in_one_line_and_finishes_its_recording(tmp_path):
+    out, stderr = tmp_path / "terminated", tmp_path / "stderr.txt"
+    code = _simulation_stopped_by(signal.SIGTERM, out, stderr)
+    assert code == 128 + signal.SIGTERM
+    partial = out / "run.partial.mcap"
+    assert stderr.read_text().splitlines()[-1] == (
+        f"maskless simulate: stopped by SIGTERM; what the run wrote is in {partial}"
+    )
+    assert "Traceback" not in stderr.read_text()
+    assert sorted(p.name for p in out.iterdir()) == ["run.partial.mcap"]  # the lock released
+    assert _messages_the_mcap_library_reads(partial) > 1000
+
+
+def test_a_folder_holding_a_run_is_refused_before_anything_is_simulated(
+    tmp_path, capsys, monkeypatch
+):
+    assert main(["simulate", "--duration", "1", "--out", str(tmp_path)]) == 0
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+
+    def never(*args, **kwargs):
+        raise AssertionError("simulated into a refused folder")
+
+    monkeypatch.setattr("maskless.diagrams.simulation.simulate", never)
+    monkeypatch.setattr("maskless.diagrams.excitation_run.simulate_loop", never)
+    assert main(["simulate", "--duration", "1", "--out", str(tmp_path)]) == 2
+    error = capsys.readouterr().err
+    assert error == (
+        f"maskless simulate: error: {tmp_path / 'run.mcap'}: an earlier run's file is there; "
+        "give --overwrite to replace that run\n"
+    )
+    assert main(["excite", "--duration", "2", "--out", str(tmp_path)]) == 2
+    assert "give --overwrite" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before

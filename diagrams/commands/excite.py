@@ -6,8 +6,9 @@ authors clipped theirs, while the cameras, their local Kalman filters and the fu
 head. Writes DIR/run.mcap with the topics `maskless simulate` writes (the command topic carries the
 excitation; the reference topic holds the resting height, as nothing is commanded), DIR/run.png,
 and prints the signal's standard deviation (against A/sqrt(3) for uniform noise), its crest factor
-and how much of it was clipped. `maskless identify --input DIR/run.mcap --ts PERIOD` then fits a
-model to the recording.
+and how much of it was clipped. A DIR holding a run is refused unless --overwrite; the files are
+renamed into place once all are written. `maskless identify --input DIR/run.mcap --ts PERIOD`
+then fits a model to the recording.
 """
 
 import argparse
@@ -16,6 +17,7 @@ import json
 from maskless.diagrams.cli import (
     add_config_argument,
     add_out_argument,
+    add_overwrite_argument,
     add_sensor_arguments,
     finite_number,
     given_labels,
@@ -104,6 +106,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_config_argument(parser)
     add_sensor_arguments(parser)
     add_out_argument(parser, "excitation", "run.mcap and run.png")
+    add_overwrite_argument(parser)
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
 
 
@@ -128,6 +131,6 @@ def run_command(args: argparse.Namespace) -> int:
         args,
         {"--seed": "random_seed", "--plant": "plant", "--image-rate": "camera_image_rate_hz"},
     )
-    summary = excite_to_files(scenario, request, args.out)
+    summary = excite_to_files(scenario, request, args.out, overwrite=args.overwrite)
     print(json.dumps(summary) if args.json else format_excitation_summary(summary))
     return 0

@@ -2,7 +2,8 @@
 
 Runs the whole sensing and control chain (the depth cameras, their local Kalman filters,
 track-to-track fusion, a controller, two valves, bladder and head) as one Drake Diagram for
---duration simulated seconds, then writes DIR/run.mcap and DIR/run.png and prints a summary. By
+--duration simulated seconds, then writes DIR/run.mcap and DIR/run.png and prints a summary (a DIR
+holding a run is refused unless --overwrite; a stopped run leaves DIR/run.partial.mcap). By
 default the plant is the first-principles pneumatic robot and the controller the offset-free LQG;
 `--plant paper --controller paper-lqg` reproduces the seed paper's loop.
 """
@@ -13,6 +14,7 @@ import json
 from maskless.diagrams.cli import (
     add_config_argument,
     add_out_argument,
+    add_overwrite_argument,
     add_preset_argument,
     add_sensor_arguments,
     scenario_from_flags,
@@ -38,6 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="random seed (default: the config's random_seed, 0)",
     )
     add_out_argument(parser, "out", "run.mcap and run.png")
+    add_overwrite_argument(parser)
     add_config_argument(parser)
     add_preset_argument(parser)
     add_sensor_arguments(parser)
@@ -74,6 +77,6 @@ def run_command(args: argparse.Namespace) -> int:
             "--image-rate": "camera_image_rate_hz",
         },
     )
-    summary = simulate_to_files(scenario, args.out)
+    summary = simulate_to_files(scenario, args.out, overwrite=args.overwrite)
     print(json.dumps(summary) if args.json else format_summary(summary))
     return 0

@@ -18,6 +18,7 @@ import json
 from maskless.diagrams.cli import (
     add_config_argument,
     add_out_argument,
+    add_overwrite_argument,
     finite_number,
     given_labels,
     positive_number,
@@ -39,6 +40,7 @@ _WORKFLOW_FLAGS = {"closed_loop_s": "--duration", "order": "--order", "random_se
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The flags of `maskless workflow`."""
     add_out_argument(parser, "workflow", "excitation/, identification/ and closed_loop/")
+    add_overwrite_argument(parser)
     parser.add_argument("--signal", choices=SIGNALS, default="prbs", help="default prbs")
     parser.add_argument(
         "--amplitude", type=positive_number, default=25.0, metavar="MA", help="mA (default 25)"
@@ -90,6 +92,7 @@ def run_command(args: argparse.Namespace) -> int:
         config=args.config,
         echo=(lambda line: None) if args.json else print,
         labels=given_labels(args, _WORKFLOW_FLAGS),
+        overwrite=args.overwrite,
     )
     print(json.dumps(result) if args.json else format_workflow(result))
     return 0

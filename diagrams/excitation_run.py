@@ -36,6 +36,7 @@ from maskless.systems.control.excitation import (
     theoretical_uniform_std,
     validated_band,
 )
+from maskless.systems.limits import DURATION_S, SAMPLE_PERIOD_S
 from maskless.systems.units import a_to_ma, m_to_mm
 
 SIGNALS = ("uniform", "prbs", "multisine")
@@ -83,6 +84,7 @@ class ExcitationRequest(LabelledRequest):
             "duration_s",
             "a positive number of seconds",
         )
+        require(DURATION_S.contains(self.duration_s), "duration_s", DURATION_S.expected())
         positive_current = finite(self.amplitude_a) and self.amplitude_a > 0
         require(positive_current, "amplitude_a", "a positive current")
         require(self.offset_a is None or finite(self.offset_a), "offset_a", "a finite current")
@@ -91,6 +93,11 @@ class ExcitationRequest(LabelledRequest):
             or (finite(self.sample_period_s) and self.sample_period_s > 0),
             "sample_period_s",
             "a positive sample period in s",
+        )
+        require(
+            self.sample_period_s is None or SAMPLE_PERIOD_S.contains(self.sample_period_s),
+            "sample_period_s",
+            SAMPLE_PERIOD_S.expected(),
         )
         require(
             isinstance(self.clock_periods, int) and self.clock_periods >= 1,

@@ -9,7 +9,6 @@ record, chooses its parts and writes the results.
 
 import dataclasses
 import json
-import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +18,11 @@ import yaml
 
 from maskless.analysis.identification import report as identification_report
 from maskless.analysis.identification.fit_plots import plot_compare, plot_residuals
-from maskless.analysis.identification.model_file import MODEL_FILE_UNITS, model_file_contents
+from maskless.analysis.identification.model_file import (
+    MODEL_FILE_UNITS,
+    model_file_contents,
+    model_from_contents,
+)
 from maskless.analysis.identification.records import (
     Detrended,
     detrend,
@@ -34,6 +37,7 @@ from maskless.diagrams.output_folder import output_folder
 from maskless.diagrams.request_labels import LabelledRequest
 from maskless.errors import ConfigError, RecordError
 from maskless.recording import COMMAND_TOPIC, FUSION_TOPIC
+from maskless.systems.limits import SAMPLE_PERIOD_S
 from maskless.systems.linear_model import LinearModel
 
 # What a maskless recording's input and output are, unless the request says otherwise.
@@ -95,10 +99,7 @@ class IdentificationRequest(LabelledRequest):
             object.__setattr__(self, "output", Path(self.output))
         object.__setattr__(self, "orders", tuple(self.orders))
         label = self.label
-        if not (isinstance(self.ts, int | float) and math.isfinite(self.ts) and self.ts > 0):
-            raise ConfigError(
-                f"{label('ts')} {self.ts}: expected a positive, finite sample period in s"
-            )
+        SAMPLE_PERIOD_S.check(self.ts, label("ts"))
         if not self.orders or any(
             not isinstance(order, int) or isinstance(order, bool) or order < 1
             for order in self.orders
@@ -291,6 +292,13 @@ def identify_signals(
             )
         if request.k_step is not None and request.k_step >= part.stop - part.start:
             raise RecordError(f"{label('k_step')} {request.k_step}: longer than the {flag} part")
+        # Every fit figure divides by the output's spread over the part (the naive baseline's
+        # from its second sample): a constant output leaves them undefined.
+        if np.ptp(y[part][1:]) == 0:
+            raise RecordError(
+                f"{flag} selects samples {part.start}:{part.stop} of {request.output or 'y'}, "
+                "where the output is constant: no fit is defined on it"
+            )
     offsets = detrend(u, y, request.detrend)
     parts = [
         Part("estimation", offsets.u[estimation_slice], offsets.y[estimation_slice]),
@@ -348,6 +356,9 @@ def write_identification(identified: "IdentificationRun", out: str | Path) -> di
             plot_compare(out / f"compare_{stem}.png", fitted, parts, request.ts, units[1])
             plot_residuals(out / f"residuals_{stem}.png", fitted, parts)
 
+    report["removed_stale_files"] = remove_stale_outputs(
+        out, [f"{fitted.method}_order{fitted.model.order}" for fitted in fitted_models]
+    )
     plotting = BackgroundTask(f"plotting into {out}", plots)
     linear = request.detrend == "linear"
     for fitted, entry in zip(fitted_models, report["models"], strict=True):
@@ -362,11 +373,35 @@ def write_identification(identified: "IdentificationRun", out: str | Path) -> di
             verdict=entry["verdict"],
         )
         path = out / f"model_{fitted.method}_order{fitted.model.order}.yaml"
+        # Read back as `--plant identified:` would, so no run writes a file the loader refuses.
+        model_from_contents(contents, str(path))
         path.write_text(yaml.safe_dump(contents, sort_keys=False))
         entry["model_file"] = str(path)
     (out / "report.json").write_text(json.dumps(report, indent=1))
     plotting.wait()
     return report
+
+
+# The files `maskless identify` writes per model, as globs and with the model's stem filled in.
+_PER_MODEL_FILES = ("model_{}.yaml", "compare_{}.png", "residuals_{}.png")
+
+
+def remove_stale_outputs(out: Path, stems: list[str]) -> list[str]:
+    """Removes the per-model files of an earlier run in ``out`` that this run does not write.
+
+    Removed rather than named: a model file left beside a new report reads as part of it (a
+    user designs on model_pem_order4.yaml believing it judged by this report.json). Only files
+    of identify's own naming (``_PER_MODEL_FILES`` with a stem METHOD_orderN) are touched.
+    Returns the names removed, for the report.
+    """
+    keep = {pattern.format(stem) for pattern in _PER_MODEL_FILES for stem in stems}
+    removed = []
+    for pattern in _PER_MODEL_FILES:
+        for path in sorted(out.glob(pattern.format("*_order*"))):
+            if path.name not in keep and path.is_file():
+                path.unlink()
+                removed.append(path.name)
+    return removed
 
 
 def format_identification_report(report: dict, out: str | Path) -> str:
@@ -402,5 +437,10 @@ def format_identification_report(report: dict, out: str | Path) -> str:
         + ", ".join(f"{name} {part['fit_percent_1step']:.3f} %" for name, part in naive.items())
     )
     lines += [f"WARNING: {warning}" for warning in report["warnings"]]
+    if report.get("removed_stale_files"):
+        lines.append(
+            "removed an earlier run's files this run did not write: "
+            + ", ".join(report["removed_stale_files"])
+        )
     lines += ["", report["verdict"], "", f"report, models and plots in {out}"]
     return "\n".join(lines)

@@ -18,6 +18,7 @@ from maskless.diagrams.output_folder import output_folder
 from maskless.diagrams.request_labels import LabelledRequest
 from maskless.diagrams.scenario import Scenario
 from maskless.errors import ConfigError
+from maskless.systems.limits import HEAD_MASS_KG, LATENCY_S, OPERATING_RANGE_POINTS
 
 # The sensor latency the controller must tolerate (issue 5: "up to 100 ms").
 LATENCY_REQUIREMENT_S = 0.1
@@ -75,8 +76,7 @@ def analyze_operating_range(
     """
     from maskless.analysis.operating_range import default_operating_ranges
 
-    if points < 2:
-        raise ConfigError(f"{points_label} {points}: expected at least 2 currents per valve")
+    OPERATING_RANGE_POINTS.check(points, points_label)
     ranges = default_operating_ranges(scenario.pneumatic, points)
     report = operating_range_report(ranges)
     if out is not None:
@@ -380,8 +380,16 @@ def _checked_cases(scenario: Scenario, request: StabilityRequest, allocation):
     factors = sorted({1.0, *request.mass_factors})
     ticks = sorted({0, *request.extra_latency_ticks})
     p = scenario.pneumatic
+    tick_s = scenario.offset_free_lqg.sample_period_s
+    for tick in ticks:
+        LATENCY_S.check(
+            tick * tick_s, f"{request.label('extra_latency_ticks')} {tick} x {tick_s:.4g} s"
+        )
     for factor in factors:
         head = dataclasses.replace(p, head_mass_kg=factor * p.head_mass_kg)
+        HEAD_MASS_KG.check(
+            head.head_mass_kg, f"{request.label('mass_factors')} {factor:g}: head_mass_kg"
+        )
         low, high = holdable_lift_range_m(head, allocation)
         # Resting past a travel limit at every command: the bladder cannot carry this head.
         if high <= p.min_lift_m or low >= p.max_lift_m:

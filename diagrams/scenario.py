@@ -31,6 +31,7 @@ from maskless.systems.config_loading import (
 )
 from maskless.systems.control.offset_free_lqg import OffsetFreeLqgWeights
 from maskless.systems.fault_injection import FaultConfig, validate_faults
+from maskless.systems.limits import DURATION_S, IMAGE_RATE_HZ
 from maskless.systems.paper_parameters import (
     PaperParameters,
     load_paper_parameters,
@@ -395,6 +396,7 @@ def validate_scenario(config: Scenario) -> None:
         config.duration_s,
         "a positive, finite duration",
     )
+    DURATION_S.check(config.duration_s, "duration_s")
     reference = config.reference
     if len(reference.step_times_s) != len(reference.step_offsets_m):
         raise ConfigError(
@@ -415,6 +417,7 @@ def validate_scenario(config: Scenario) -> None:
         config.camera_image_rate_hz,
         "a positive, finite rate",
     )
+    IMAGE_RATE_HZ.check(config.camera_image_rate_hz, "camera_image_rate_hz")
     validate_patient_motion(config.patient_motion)
     validate_faults(config.faults, list(config.cameras))
     validate_fault_detection(config.fault_detection)
@@ -471,6 +474,49 @@ def validate_scenario(config: Scenario) -> None:
             value,
             f"a lift within the bladder's travel [{pneumatic.min_lift_m}, {pneumatic.max_lift_m}]",
         )
+    _validate_run_length(config)
+    _validate_reference_reach(config)
+
+
+def _validate_run_length(config: Scenario) -> None:
+    """Refuses a run shorter than one tick of its controller: it would judge nothing it did."""
+    tick_s = (
+        config.paper.sample_period_s
+        if isinstance(config.controller, PaperLqg)
+        else config.offset_free_lqg.sample_period_s
+    )
+    if config.duration_s < tick_s:
+        raise ConfigError(
+            f"duration_s = {config.duration_s!r}: expected at least one controller tick, "
+            f"{tick_s:.6g} s (a shorter run has no command to judge)"
+        )
+
+
+def _validate_reference_reach(config: Scenario) -> None:
+    """Refuses a reference the bladder cannot reach, naming ``reference.step_offsets_m``.
+
+    On the pneumatic plant the reference is a lift (start_lift_m plus the offset) within
+    [min_lift_m, max_lift_m]. The linear plants start at their model's operating point, somewhere
+    in the same bladder's travel, so an offset larger than the whole travel is out of reach.
+    """
+    pneumatic = config.pneumatic
+    travel_m = pneumatic.max_lift_m - pneumatic.min_lift_m
+    for offset in config.reference.step_offsets_m:
+        if isinstance(config.plant, PneumaticPlant):
+            lift = config.start_lift_m + offset
+            reachable = pneumatic.min_lift_m <= lift <= pneumatic.max_lift_m
+            expected = (
+                f"start_lift_m ({config.start_lift_m}) plus each offset within the bladder's "
+                f"travel [{pneumatic.min_lift_m}, {pneumatic.max_lift_m}] m"
+            )
+        else:
+            reachable = abs(offset) <= travel_m
+            expected = f"offsets within the bladder's whole travel, +-{travel_m:.6g} m"
+        if not reachable:
+            raise ConfigError(
+                f"reference.step_offsets_m = {config.reference.step_offsets_m}: {offset} is out "
+                f"of reach; expected {expected}"
+            )
 
 
 # Names the closed loop gives its own systems; a camera's systems are NAME, NAME.noise (rendered:
@@ -538,11 +584,7 @@ def _validate_choices(config: Scenario) -> None:
         if path and not Path(path).is_file():
             raise ConfigError(f"{field_name} = {path!r}: model file not found")
         if path:
-            # Read now, so a malformed model file is refused before anything runs.
-            try:
-                load_identified_model(path)
-            except MasklessError as error:
-                raise ConfigError(f"{field_name}: {error}") from None
+            _check_model_file(field_name, path)
     for field_name, choice in (("plant", config.plant), ("controller", config.controller)):
         camera = getattr(choice, "camera", None)
         if camera is not None and camera not in config.cameras:
@@ -550,3 +592,19 @@ def _validate_choices(config: Scenario) -> None:
                 f"{field_name}.camera = {camera!r}: expected one of the cameras "
                 f"({', '.join(config.cameras)})"
             )
+
+
+def _check_model_file(field_name: str, path: str) -> None:
+    """Reads a model file now, so a malformed one is refused before anything runs.
+
+    As the plant, an unstable model is refused too: run open loop, it drives the head to infinity.
+    """
+    try:
+        model = load_identified_model(path)
+    except MasklessError as error:
+        raise ConfigError(f"{field_name}: {error}") from None
+    if field_name == "plant.model_file" and not model.is_stable():
+        raise ConfigError(
+            f"{field_name} = {path!r}: the model is unstable (largest pole magnitude "
+            f"{max(abs(model.poles())):.6g}), so it cannot play the plant"
+        )

@@ -17,7 +17,7 @@ from pathlib import Path
 import yaml
 from pydrake.common.yaml import yaml_load_typed
 
-from maskless.errors import ConfigError, MissingFileError
+from maskless.errors import ConfigError, MasklessError, MissingFileError
 
 # A float field whose value must come from a YAML file (the shipped assets), so every published
 # number is written once, in assets/, and never repeated as a Python default.
@@ -43,8 +43,96 @@ class _Tagged:
     value: object
 
 
-class _TagKeepingLoader(yaml.SafeLoader):
-    """SafeLoader that keeps ``!Tag`` nodes instead of refusing them."""
+# Configs and model files are a few kB and nest 4 levels at most; these bounds refuse at once a
+# file that is no config (a recording passed by mistake) or that would exhaust the composer's
+# recursion, long before either costs time or memory.
+MAX_YAML_BYTES = 1 << 20
+MAX_YAML_DEPTH = 32
+
+
+class _RefusedYaml(yaml.MarkedYAMLError):
+    """Valid YAML that maskless refuses (an alias, a duplicate key, too deep a nesting)."""
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """SafeLoader that refuses anchors and aliases, duplicate keys and deep nesting.
+
+    Aliases are refused outright, not bounded: no config needs them, and a few lines of them (a
+    "billion laughs") expand to gigabytes once the tree is walked. A repeated key would silently
+    keep only its last value.
+    """
+
+    def __init__(self, stream):
+        super().__init__(stream)
+        self._depth = 0
+
+    def compose_node(self, parent, index):
+        event = self.peek_event()
+        if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
+            raise _RefusedYaml(
+                problem="anchors and aliases (&name, *name) are not accepted; write the value out",
+                problem_mark=event.start_mark,
+            )
+        if self._depth >= MAX_YAML_DEPTH:
+            raise _RefusedYaml(
+                problem=f"nested deeper than {MAX_YAML_DEPTH} levels", problem_mark=event.start_mark
+            )
+        self._depth += 1
+        try:
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+    def construct_mapping(self, node, deep=False):
+        first_lines = {}
+        for key_node, _ in node.value if isinstance(node, yaml.MappingNode) else ():
+            key = self.construct_object(key_node, deep=True)
+            if not isinstance(key, typing.Hashable):
+                continue  # SafeLoader's own check refuses it below
+            if key in first_lines:
+                raise _RefusedYaml(
+                    problem=f"duplicate key {key!r} (first at line {first_lines[key]})",
+                    problem_mark=key_node.start_mark,
+                )
+            first_lines[key] = key_node.start_mark.line + 1
+        return super().construct_mapping(node, deep=deep)
+
+
+def read_yaml(path: Path, error: type[MasklessError] = ConfigError, loader=_StrictLoader):
+    """The YAML tree of the file ``path``, read strictly (see ``_StrictLoader``).
+
+    Raises:
+        MissingFileError: ``path`` is not a file.
+        error: a file too large, not UTF-8 text, malformed, or refused, in one line naming the
+            file (and the line and column where known).
+    """
+    if not path.is_file():
+        raise MissingFileError(f"file not found: {path}")
+    if path.stat().st_size > MAX_YAML_BYTES:
+        raise error(
+            f"{path}: {path.stat().st_size} bytes; a YAML file here is at most {MAX_YAML_BYTES} "
+            "(configs and model files are a few kB)"
+        )
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as decode_error:
+        raise error(
+            f"{path}: not UTF-8 text (byte 0x{decode_error.object[decode_error.start]:02x} at "
+            f"offset {decode_error.start}); save it as UTF-8"
+        ) from None
+    try:
+        return yaml.load(text, Loader=loader)
+    except yaml.YAMLError as yaml_error:
+        # PyYAML's own message spans several lines; the CLI's errors are one line.
+        mark = getattr(yaml_error, "problem_mark", None)
+        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
+        problem = getattr(yaml_error, "problem", None) or str(yaml_error).splitlines()[0]
+        refused = isinstance(yaml_error, _RefusedYaml)
+        raise error(f"{where}: {'' if refused else 'not valid YAML: '}{problem}") from None
+
+
+class _TagKeepingLoader(_StrictLoader):
+    """The strict loader, keeping ``!Tag`` nodes instead of refusing them."""
 
 
 def _construct_tagged(loader, tag_suffix, node):
@@ -237,20 +325,14 @@ def load_config(schema, filename: str | Path, defaults=None):
 
     Raises:
         FileNotFoundError: the file does not exist.
-        ConfigError: the YAML is malformed, has an unknown or mistyped field, or (without
+        ConfigError: the file is no UTF-8 YAML, or holds what ``read_yaml`` refuses (an alias,
+            a repeated key, deep nesting), has an unknown or mistyped field, or (without
             defaults) leaves a required field unset. The message names the file and the field.
     """
     path = Path(filename)
     if not path.is_file():
         raise MissingFileError(f"config file not found: {path}")
-    try:
-        tree = yaml.load(path.read_text(), Loader=_TagKeepingLoader)
-    except yaml.YAMLError as error:
-        # PyYAML's own message spans several lines; the CLI's errors are one line.
-        mark = getattr(error, "problem_mark", None)
-        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
-        problem = getattr(error, "problem", None) or str(error).splitlines()[0]
-        raise ConfigError(f"{where}: not valid YAML: {problem}") from None
+    tree = read_yaml(path, ConfigError, _TagKeepingLoader)
     if tree is None:
         tree = {}
     checked = _checked_tree(tree, schema, defaults, str(path))

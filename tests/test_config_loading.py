@@ -1,11 +1,19 @@
 """Typed YAML configs: values over the defaults, and errors naming the file and the field."""
 
+import time
 from dataclasses import dataclass, field
 
 import pytest
 
+from maskless.diagrams.scenario import load_scenario
 from maskless.errors import ConfigError
-from maskless.systems.config_loading import UNSET, asset_path, find_unset_fields, load_config
+from maskless.systems.config_loading import (
+    MAX_YAML_DEPTH,
+    UNSET,
+    asset_path,
+    find_unset_fields,
+    load_config,
+)
 
 
 @dataclass
@@ -95,3 +103,47 @@ class _Holder:
 def test_a_disabled_section_needs_nothing_else_set():
     assert find_unset_fields(_Holder()) == []
     assert find_unset_fields(_Holder(_Optional(enabled=True))) == ["section.size_m"]
+
+
+# --- YAML read safely: every refusal is one line naming the file (and where known, the line) ---
+
+
+def refused(path, schema=Outer):
+    """The one-line message of the ConfigError loading ``path`` raises."""
+    with pytest.raises(ConfigError) as raised:
+        load_config(schema, path, defaults=schema())
+    message = str(raised.value)
+    assert "\n" not in message and str(path) in message
+    return message
+
+
+def test_a_repeated_key_is_refused_naming_line_and_key(tmp_path):
+    path = write(tmp_path, "label: a\ninner:\n  count: 2\nlabel: b\n")
+    assert refused(path).endswith(":4:1: duplicate key 'label' (first at line 1)")
+
+
+def test_an_alias_bomb_is_refused_at_once(tmp_path):
+    # Nine levels of nine aliases each: 387 million strings once the list is walked.
+    lines = ['a0: &a0 ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]']
+    lines += [f"a{i}: &a{i} [{','.join([f'*a{i - 1}'] * 9)}]" for i in range(1, 9)]
+    path = write(tmp_path, "\n".join([*lines, "values_m: *a8"]) + "\n")
+    start = time.perf_counter()
+    message = refused(path)
+    assert time.perf_counter() - start < 0.5
+    assert "anchors and aliases" in message
+
+
+def test_a_file_that_is_not_utf8_is_refused(tmp_path):
+    path = tmp_path / "latin1.yaml"
+    path.write_bytes("label: café\n".encode("latin-1"))
+    assert "not UTF-8 text" in refused(path)
+
+
+def test_deep_nesting_is_refused_before_the_recursion_limit(tmp_path):
+    path = write(tmp_path, "values_m: " + "[" * 5000 + "]" * 5000 + "\n")
+    assert f"nested deeper than {MAX_YAML_DEPTH} levels" in refused(path)
+
+
+def test_tags_still_load_through_the_strict_loader(tmp_path):
+    path = write(tmp_path, "cameras:\n  kinect_v1: !KinectV1Config {latency_s: 0.1}\n")
+    assert load_scenario(path).cameras["kinect_v1"].latency_s == 0.1

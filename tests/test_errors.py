@@ -32,6 +32,15 @@ def test_each_error_is_of_the_family_and_of_the_builtin_a_caller_expects(error, 
         (["identify", "--input", "no_such.csv", "--output", "y.csv", "--ts", "0.1"], "no_such.csv"),
         (["identify", "--input", "u.csv", "--ts", "0.1"], "output is required when --input"),
         (["excite", "--signal", "prbs", "--clock-periods", "9000"], "--clock-periods 9000"),
+        # Files a user may hand over by mistake, each refused in one line before anything runs.
+        (["simulate", "--config", "dup.yaml"], "dup.yaml:2:1: duplicate key 'duration_s'"),
+        (["simulate", "--config", "latin1.yaml"], "latin1.yaml: not UTF-8 text"),
+        (["simulate", "--duration", "1e12"], "duration_s = 1000000000000.0: expected 0 to 86400"),
+        (
+            ["simulate", "--plant", "identified:u.csv"],
+            "plant.model_file: u.csv: expected a mapping",
+        ),
+        (["excite", "--duration", "1e12"], "--duration 1000000000000.0: expected 0 to 86400"),
     ],
 )
 def test_the_cli_reports_a_user_error_as_one_line_naming_only_the_flags_given(
@@ -39,6 +48,8 @@ def test_the_cli_reports_a_user_error_as_one_line_naming_only_the_flags_given(
 ):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "u.csv").write_text("1\n2\n")
+    (tmp_path / "dup.yaml").write_text("duration_s: 10.0\nduration_s: 20.0\n")
+    (tmp_path / "latin1.yaml").write_bytes("duration_s: 10.0 # café\n".encode("latin-1"))
     assert main([*argv, "--out", str(tmp_path / "out")]) == 2
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and error.startswith(f"maskless {argv[0]}: error: ")

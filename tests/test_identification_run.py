@@ -349,3 +349,45 @@ def test_identify_on_arrays_refuses_mismatched_or_non_finite_signals():
         maskless.identify(np.zeros(10), np.zeros(9), sample_period_s=0.1)
     with pytest.raises(maskless.RecordError, match="finite"):
         maskless.identify(np.array([0.0, np.nan]), np.zeros(2), sample_period_s=0.1)
+
+
+def test_implausible_ts_exits_2_in_one_line_and_writes_no_model(tmp_path, capsys):
+    u, y, _, _ = simulate_record(2, "white", 2000)
+    u_path, y_path = write_record(tmp_path, u, y)
+    out = tmp_path / "id"
+    assert main(["identify", *record_flags(u_path, y_path, "1e300"), "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("maskless identify: error: --ts 1e+300: expected 0.001 to 60 s (")
+    assert error.count("\n") == 1 and "Traceback" not in error
+    assert not out.exists() or not list(out.glob("model_*.yaml"))
+
+
+def test_a_constant_output_part_is_refused_not_judged(tmp_path, capsys):
+    u, y, _, _ = simulate_record(2, "white", 2000)
+    y[1200:] = 0.0  # the validation part, 0.6:1, holds nothing to fit
+    u_path, y_path = write_record(tmp_path, u, y)
+    assert main(["identify", *record_flags(u_path, y_path, "0.048"), "--out", str(tmp_path)]) == 2
+    error = capsys.readouterr().err
+    assert "validation selects samples 1200:2000 of" in error and "constant" in error
+    assert error.count("\n") == 1
+
+
+def test_a_new_run_removes_the_model_files_an_earlier_run_left(tmp_path, capsys):
+    u, y, _, _ = simulate_record(2, "white", 2000)
+    u_path, y_path = write_record(tmp_path, u, y)
+    out = tmp_path / "id"
+    flags = [*record_flags(u_path, y_path, "0.048"), "--out", str(out)]
+    run_json(capsys, *flags, "--orders", "2,3")
+    (out / "notes_order3.txt").write_text("the user's own file")
+    report = run_json(capsys, *flags, "--orders", "2")
+    assert sorted(path.name for path in out.glob("*_order*")) == [
+        "compare_pem_order2.png",
+        "model_pem_order2.yaml",
+        "notes_order3.txt",
+        "residuals_pem_order2.png",
+    ]
+    assert report["removed_stale_files"] == [
+        "model_pem_order3.yaml",
+        "compare_pem_order3.png",
+        "residuals_pem_order3.png",
+    ]

@@ -1,4 +1,6 @@
-"""Model files: units in the file (mm, mA) load into SI, and unknown units are refused."""
+"""Model files: units in the file (mm, mA) load into SI; every defect is one line naming it."""
+
+import time
 
 import numpy as np
 import pytest
@@ -59,4 +61,69 @@ def test_mixed_units_scale_b_and_unknown_units_are_refused(tmp_path):
     contents["B"] = [[2.0]]
     path.write_text(yaml.safe_dump(contents))
     with pytest.raises(ModelError, match=r"m.yaml: B must have shape \(2, 1\)"):
+        load_identified_model(path)
+
+
+GOOD_MODEL = """\
+A: [[0.9, 0.0], [0.0, 0.5]]
+B: [[1.0], [1.0]]
+C: [[1.0, 0.0]]
+D: [[0.0]]
+K: [[0.1], [0.0]]
+sample_period_s: 0.048
+input: {unit: mA, offset: 80.0}
+output: {unit: mm, offset: 700.0}
+innovations_variance: 0.01
+stable: true
+"""
+# Nine levels of nine aliases: 387 million entries of A once expanded.
+ALIAS_BOMB = "".join(
+    f"l{i}: &l{i} [{','.join(['*l' + str(i - 1) if i else '1.0'] * 9)}]\n" for i in range(9)
+)
+
+
+def replaced(line_start, new_line):
+    """GOOD_MODEL with its line beginning ``line_start`` replaced."""
+    lines = [new_line if line.startswith(line_start) else line for line in GOOD_MODEL.split("\n")]
+    return "\n".join(lines)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("A: [[0.9, 0.0]\n", r"not valid YAML"),
+        ("", r"expected a mapping of A, B, .*got NoneType"),
+        ("- 1\n- 2\n", r"expected a mapping .*got list"),
+        (replaced("B:", ""), r"missing field 'B'"),
+        (replaced("output:", "output: {unit: psi, offset: 700.0}"), r"'output\.unit' = 'psi'"),
+        (replaced("output:", "output: 700.0"), r"field 'output' = 700\.0: expected a mapping"),
+        (replaced("input:", "input: {unit: mA, offset: x}"), r"'input\.offset' = 'x'"),
+        (replaced("C:", "C: [[1.0]]"), r"C must have shape \(1, 2\)"),
+        (replaced("A:", "A: [[0.9, 0.0], [0.0]]"), r"field 'A': rows of different lengths"),
+        (replaced("D:", "D: [[.nan]]"), r"field 'D': expected finite numbers"),
+        (replaced("K:", "K: [[.inf], [0.0]]"), r"field 'K': expected finite numbers"),
+        (replaced("innovations_variance:", "innovations_variance: [1]"), "innovations_variance"),
+        (replaced("sample_period_s:", "sample_period_s: 1.0e+300"), r"sample_period_s = 1e\+300"),
+        (replaced("sample_period_s:", "sample_period_s: 0"), r"sample_period_s = 0: expected"),
+        (replaced("A:", "A: [[1.5, 0.0], [0.0, 0.5]]"), r"'stable' = true, but .* 1\.5"),
+        (replaced("stable:", "stable: maybe"), r"'stable' = 'maybe'"),
+        (replaced("input:", "input: {unit: mA, offset: 80.0}\ninput: {unit: A}"), "duplicate"),
+        (ALIAS_BOMB + replaced("A:", "A: *l8"), "anchors and aliases"),
+    ],
+)
+def test_a_defective_model_file_is_one_line_naming_file_and_field(tmp_path, text, message):
+    path = tmp_path / "model_bad.yaml"
+    path.write_text(text)
+    start = time.perf_counter()
+    with pytest.raises(ModelError, match=message) as raised:
+        load_identified_model(path)
+    assert time.perf_counter() - start < 0.5
+    assert str(raised.value).startswith(str(path)) and "\n" not in str(raised.value)
+
+
+@pytest.mark.parametrize("contents", [bytes(range(256)), "A: café\n".encode("latin-1")])
+def test_a_binary_or_non_utf8_model_file_is_refused(tmp_path, contents):
+    path = tmp_path / "model.yaml"
+    path.write_bytes(contents)
+    with pytest.raises(ModelError, match=r"model\.yaml: not UTF-8 text"):
         load_identified_model(path)

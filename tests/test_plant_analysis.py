@@ -173,3 +173,18 @@ def test_a_sealed_or_a_leaky_bladder_is_analysed_and_simulated_not_a_traceback(
     assert travel_mm[0] <= low <= high <= travel_mm[1]
     args = ["simulate", "--config", str(config), "--duration", "3", "--out", str(tmp_path / "s")]
     assert main(args) == 0
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["operating-range", "--points", "100000"], "--points 100000: expected 2 to 1000"),
+        (["stability", "--extra-latency-ticks", "1000"], "--extra-latency-ticks 1000 x"),
+        (["stability", "--mass-factors", "0.001"], "--mass-factors 0.001: head_mass_kg"),
+    ],
+)
+def test_implausible_analysis_flags_exit_2_in_one_line(tmp_path, capsys, args, message):
+    assert main(["analyze", *args, "--out", str(tmp_path / "a")]) == 2
+    error = capsys.readouterr().err
+    assert message in error and error.count("\n") == 1 and "Traceback" not in error
+    assert not (tmp_path / "a").exists()

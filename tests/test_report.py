@@ -10,6 +10,7 @@ from maskless.analysis.identification.report import (
     EXPLAINS_VERDICT,
     MARGIN_1STEP,
     MARGIN_SIM,
+    NO_VERDICT,
     Part,
     fit,
     margins,
@@ -135,3 +136,10 @@ def test_an_unknown_method_is_refused_naming_the_methods():
     part = Part("estimation", np.zeros(100), np.zeros(100))
     with pytest.raises(ValueError, match="method = 'ols': expected one of pem, armax, arx, n4sid"):
         fit("ols", part, 2, 1.0)
+
+
+def test_a_nan_figure_is_named_not_judged():
+    figures = {"fit_percent_1step": 90.0, "fit_percent_sim": math.nan}
+    gains = {"naive_last_value": 1.0, "without_input": 5.0, "free_response": math.nan}
+    said = verdict(figures, baselines(), gains, PART, stable=True)
+    assert said == f"{NO_VERDICT}: on the validation part, fit_percent_sim is NaN."

@@ -285,3 +285,47 @@ def test_a_shipped_preset_by_name_is_its_file_applied_before_the_config(tmp_path
         ConfigError, match="no scenario preset 'paper'; shipped: paper_camera_noise"
     ):
         load_scenario(presets=["paper"])
+
+
+# --- plausibility limits: refused before anything runs, with the field, the cap and the reason ---
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("duration_s: 1.0e+12\n", r"duration_s = 1000000000000\.0: expected 0 to 86400 s \(.*GB"),
+        ("duration_s: 1.0e-9\n", r"duration_s = 1e-09: expected at least one controller tick"),
+        (
+            "cameras:\n  kinect_v1: !KinectV1Config {latency_s: 100.0}\n",
+            r"cameras\.kinect_v1\.latency_s = 100\.0: expected 0 to 1 s \(.*latency",
+        ),
+        (
+            "cameras:\n  kinect_v2: !KinectV2Config {frame_rate_hz: 1.0e+6}\n",
+            r"cameras\.kinect_v2\.frame_rate_hz = 1000000\.0: expected 1 to 1000 Hz",
+        ),
+        ("camera_image_rate_hz: 1.0e+6\n", r"camera_image_rate_hz = 1000000\.0: expected 0 to 30"),
+        ("pneumatic: {head_mass_kg: 0.001}\n", r"pneumatic\.head_mass_kg = 0\.001: expected 1 to"),
+        (
+            "reference: {step_times_s: [10.0], step_offsets_m: [10.0]}\n",
+            r"reference\.step_offsets_m = \[10\.0\]: 10\.0 is out of reach.*\[-0\.008, 0\.04\]",
+        ),
+        (
+            "plant: !PaperPlant {}\ncontroller: !PaperLqg {}\n"
+            "reference: {step_times_s: [10.0], step_offsets_m: [-0.05]}\n",
+            r"reference\.step_offsets_m = \[-0\.05\]: -0\.05 is out of reach.*travel, \+-0\.048",
+        ),
+    ],
+)
+def test_an_implausible_scenario_is_refused_with_the_cap_and_reason(tmp_path, text, message):
+    path = tmp_path / "implausible.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=message) as raised:
+        load_scenario(path)
+    assert str(raised.value).startswith(f"{path}: ") and "\n" not in str(raised.value)
+
+
+def test_an_unstable_model_cannot_play_the_plant(tmp_path):
+    model = write_first_order_model(tmp_path / "model.yaml")
+    model.write_text(model.read_text().replace("0.98", "1.02"))
+    with pytest.raises(ConfigError, match=r"plant\.model_file = .*unstable .*1\.02"):
+        load_scenario(plant=IdentifiedPlant(model_file=str(model)))

@@ -5,13 +5,15 @@ and their units, the one-step innovations variance (what a Kalman design needs),
 the verdict. The loader returns the ``LinearModel`` in SI that the designs and plants use.
 """
 
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-import yaml
 
 from maskless.errors import MissingFileError, ModelError
+from maskless.systems.config_loading import read_yaml
+from maskless.systems.limits import SAMPLE_PERIOD_S
 from maskless.systems.linear_model import LinearModel
 
 if TYPE_CHECKING:
@@ -68,55 +70,121 @@ def load_identified_model(path: str | Path) -> LinearModel:
     the operating point.
 
     Raises:
-        ModelError: a missing field, a unit other than m, mm, A or mA, or matrices of the wrong
-            shape, naming the file.
+        MissingFileError: there is no such file.
+        ModelError: naming the file and the field: a file that is not UTF-8 YAML (or holds an
+            alias, a repeated key, deep nesting), not a mapping, a missing field, a unit other
+            than m, mm, A or mA, a matrix of the wrong shape or not finite, a sample period out
+            of ``SAMPLE_PERIOD_S``, or ``stable: true`` on a model whose poles say otherwise.
     """
     path = Path(path)
-    contents = _model_file_contents(path)
     try:
-        output_unit, output_scale = _si_unit(path, contents, "output")
-        input_unit, input_scale = _si_unit(path, contents, "input")
-        matrices = {name: np.array(contents[name], float) for name in ("A", "B", "C", "D", "K")}
-        variance = contents.get("innovations_variance")
-        return LinearModel(
+        contents = read_yaml(path, ModelError)
+    except MissingFileError:
+        raise MissingFileError(f"model file not found: {path}") from None
+    return model_from_contents(contents, str(path))
+
+
+def model_from_contents(contents, source: str) -> LinearModel:
+    """The ``LinearModel`` (in SI) of a model file's mapping, checked field by field.
+
+    ``source`` names the file in every message. ``maskless identify`` checks what it is about to
+    write with this too, so it never writes a file this loader would refuse.
+    """
+    if not isinstance(contents, dict):
+        raise ModelError(
+            f"{source}: expected a mapping of A, B, C, D, K, sample_period_s, input, output; "
+            f"got {type(contents).__name__}"
+        )
+    output_unit, output_scale = _si_unit(source, contents, "output")
+    input_unit, input_scale = _si_unit(source, contents, "input")
+    matrices = {name: _matrix(source, contents, name) for name in ("A", "B", "C", "D", "K")}
+    period = _field(source, contents, "sample_period_s")
+    SAMPLE_PERIOD_S.check(period, f"{source}: sample_period_s", ModelError)
+    variance = contents.get("innovations_variance")
+    if variance is not None:
+        variance = _number(source, contents, "innovations_variance") * output_scale**2
+    offsets = {
+        signal: _number(source, _field(source, contents, signal), "offset", signal)
+        for signal in ("input", "output")
+    }
+    try:
+        model = LinearModel(
             A=matrices["A"],
             B=matrices["B"] * output_scale / input_scale,
             C=matrices["C"],
             D=matrices["D"] * output_scale / input_scale,
             K=matrices["K"],
-            sample_period_s=float(contents["sample_period_s"]),
-            operating_output=float(contents["output"]["offset"]) * output_scale,
-            operating_input=float(contents["input"]["offset"]) * input_scale,
+            sample_period_s=period,
+            operating_output=offsets["output"] * output_scale,
+            operating_input=offsets["input"] * input_scale,
             input_unit=input_unit,
             output_unit=output_unit,
-            innovations_variance=None if variance is None else variance * output_scale**2,
+            innovations_variance=variance,
         )
-    except KeyError as missing:
-        raise ModelError(f"{path}: missing field {missing}") from None
-    except (TypeError, ValueError) as error:  # ModelError is a ValueError: it names the matrix
-        raise ModelError(f"{path}: {error}") from None
+    except ModelError as error:  # it names the matrix or the field
+        raise ModelError(f"{source}: {error}") from None
+    _check_claimed_stability(source, contents, model)
+    return model
 
 
-def _model_file_contents(path: Path) -> dict:
-    """The mapping a model file holds, refused with the file named when it is none."""
-    try:
-        contents = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise MissingFileError(f"model file not found: {path}") from None
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as error:
-        raise ModelError(
-            f"{path}: not a readable YAML model file ({type(error).__name__})"
-        ) from None
+def _field(source: str, contents: dict, name: str, within: str = ""):
+    """``contents[name]``, or a ModelError naming the missing field."""
+    if name not in contents:
+        raise ModelError(f"{source}: missing field '{within}{name}'")
+    return contents[name]
+
+
+def _number(source: str, contents, name: str, within: str = "") -> float:
+    """A finite number field of ``contents`` (the mapping ``within``, when nested)."""
+    dotted = f"{within}.{name}" if within else name
     if not isinstance(contents, dict):
-        raise ModelError(
-            f"{path}: expected a mapping of A, B, C, D, K, sample_period_s, input, output"
-        )
-    return contents
+        raise ModelError(f"{source}: field '{within}' = {contents!r}: expected a mapping")
+    value = _field(source, contents, name, f"{within}." if within else "")
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise ModelError(f"{source}: field '{dotted}' = {value!r}: expected a finite number")
+    return float(value)
 
 
-def _si_unit(path: Path, contents: dict, signal: str) -> tuple[str, float]:
+def _matrix(source: str, contents: dict, name: str) -> np.ndarray:
+    """A field holding a rectangular matrix of finite numbers (its shape is checked later)."""
+    value = _field(source, contents, name)
+    rows = value if isinstance(value, list) else None
+    if not rows or not all(isinstance(row, list) for row in rows):
+        raise ModelError(f"{source}: field '{name}': expected a matrix, a list of rows")
+    if len({len(row) for row in rows}) != 1:
+        raise ModelError(f"{source}: field '{name}': rows of different lengths")
+    numbers = all(
+        isinstance(x, int | float) and not isinstance(x, bool) for row in rows for x in row
+    )
+    matrix = np.array(rows, float) if numbers else None
+    if matrix is None or not np.all(np.isfinite(matrix)):
+        raise ModelError(f"{source}: field '{name}': expected finite numbers only")
+    return matrix
+
+
+def _si_unit(source: str, contents: dict, signal: str) -> tuple[str, float]:
     """(SI unit, scale to it) of the file's ``signal`` ("input" or "output")."""
-    unit = contents[signal]["unit"]
+    section = _field(source, contents, signal)
+    if not isinstance(section, dict):
+        raise ModelError(f"{source}: field '{signal}' = {section!r}: expected a mapping")
+    unit = _field(source, section, "unit", f"{signal}.")
     if unit not in _SI_UNITS:
-        raise ModelError(f"{path}: {signal}.unit = {unit!r}: expected one of {sorted(_SI_UNITS)}")
+        raise ModelError(
+            f"{source}: field '{signal}.unit' = {unit!r}: expected one of {sorted(_SI_UNITS)}"
+        )
     return _SI_UNITS[unit]
+
+
+def _check_claimed_stability(source: str, contents: dict, model: LinearModel) -> None:
+    """Refuses a ``stable`` field that is no boolean, or that the poles contradict."""
+    claimed = contents.get("stable")
+    if claimed is None:
+        return
+    if not isinstance(claimed, bool):
+        raise ModelError(f"{source}: field 'stable' = {claimed!r}: expected true or false")
+    if claimed != model.is_stable():
+        largest = float(np.abs(model.poles()).max()) if model.order else 0.0
+        raise ModelError(
+            f"{source}: field 'stable' = {str(claimed).lower()}, but A's largest pole magnitude "
+            f"is {largest:.6g}"
+        )

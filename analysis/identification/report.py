@@ -258,6 +258,8 @@ def margins(figures: dict, baselines: dict, naive: dict, part_name: str) -> dict
 
 # How a verdict that the input explains the output begins (the workflow checks for it).
 EXPLAINS_VERDICT = "The input explains the output"
+# How a verdict begins when a figure it needs is undefined (NaN): it is named, not judged.
+NO_VERDICT = "No verdict"
 
 
 def verdict(figures: dict, baselines: dict, gains: dict, part_name: str, stable: bool) -> str:
@@ -268,8 +270,25 @@ def verdict(figures: dict, baselines: dict, gains: dict, part_name: str, stable:
     "explains the output": the input-driven simulation fits at least 50 % and beats the initial
     state's free response (or zero) by 10 points. "essentially nothing": dropping the input costs
     less than 0.1 points of one-step fit and the simulation does not beat the free response (or
-    zero) by 10 points. Otherwise "part of the output".
+    zero) by 10 points. Otherwise "part of the output". A NaN among the figures judged gives
+    no verdict: the message names it.
     """
+    judged = {
+        "fit_percent_1step": figures["fit_percent_1step"],
+        "fit_percent_sim": figures["fit_percent_sim"],
+        "without_input fit_percent_1step": baselines["without_input"][part_name][
+            "fit_percent_1step"
+        ],
+        "free_response fit_percent_sim": baselines["free_response"][part_name]["fit_percent_sim"],
+    }
+    undefined = [name for name, value in judged.items() if np.isnan(value)]
+    if undefined:
+        # NaN compares false with everything, so a threshold would pass a verdict on nothing.
+        return (
+            f"{NO_VERDICT}: on the {part_name} part, {', '.join(undefined)} "
+            f"{'is' if len(undefined) == 1 else 'are'} NaN"
+            + ("; the model is UNSTABLE." if not stable else ".")
+        )
     structure, order = baselines["without_input_structure"].upper(), baselines["order"]
     evidence = (
         f"without the input the same order-{order} structure ({structure}) predicts one step "
@@ -356,7 +375,10 @@ def identify(
         entries.append(entry)
         fitted_models.append(fitted)
         baselines.append(model_baselines)
-    best = max(entries, key=lambda e: e[validation.name]["fit_percent_1step"])
+    # A NaN fit would make max() depend on the order of the entries; it ranks last.
+    best = max(
+        entries, key=lambda e: np.nan_to_num(e[validation.name]["fit_percent_1step"], nan=-np.inf)
+    )
     warnings = []
     if overlap:
         warnings.append(

@@ -42,6 +42,7 @@ from scipy.optimize import brentq
 
 from maskless.errors import ConfigError
 from maskless.systems.config_loading import asset_path, load_config
+from maskless.systems.limits import HEAD_MASS_KG
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
@@ -124,6 +125,9 @@ def _parameter_checks(p: PneumaticParameters):
     exponent = p.polytropic_exponent
     adiabatic = "in [1, 1.4] (isothermal..adiabatic)"
     yield 1.0 <= exponent <= 1.4, "polytropic_exponent", exponent, adiabatic
+    for name in ("nominal_head_mass_kg", "head_mass_kg"):
+        mass = getattr(p, name)
+        yield HEAD_MASS_KG.contains(mass), name, mass, HEAD_MASS_KG.expected()
     below_max = f"below max_lift_m ({p.max_lift_m})"
     yield p.min_lift_m < p.max_lift_m, "min_lift_m", p.min_lift_m, below_max
     yield (

@@ -32,6 +32,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import RandomSource
 
 from maskless.systems.config_loading import UNSET, refuse_out_of_range
+from maskless.systems.limits import FRAME_RATE_HZ, LATENCY_S
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
@@ -226,7 +227,7 @@ def _range_checks(config: DepthSensorConfig):
     A generator: each check is evaluated only once those before it have passed, so the latency's
     bound is computed from a frame rate already known to be positive.
     """
-    yield config.frame_rate_hz > 0, "frame_rate_hz", "a positive rate"
+    yield FRAME_RATE_HZ.contains(config.frame_rate_hz), "frame_rate_hz", FRAME_RATE_HZ.expected()
     half_frame_s = 0.5 / config.frame_rate_hz
     yield (
         config.latency_s >= half_frame_s,
@@ -234,6 +235,7 @@ def _range_checks(config: DepthSensorConfig):
         f"at least half a frame period, {half_frame_s:.4f} s (it is rounded "
         "to whole frames, at least one)",
     )
+    yield LATENCY_S.contains(config.latency_s), "latency_s", LATENCY_S.expected()
     yield 0.0 <= config.dropout_probability < 1.0, "dropout_probability", "a probability in [0, 1)"
     yield (
         0.0 <= config.incidence_angle_rad < math.pi / 2,

@@ -80,19 +80,8 @@ def health(kf, context) -> dict:
     return dict(zip(("stale", "rejecting", "stuck"), flags > 0.5, strict=True))
 
 
-def test_a_frame_outside_the_innovation_gate_is_not_used_and_counted():
+def test_a_frame_outside_the_innovation_gate_is_not_used_and_counted(kf):
     """The gate is |z - ẑ| <= sqrt(bound S), S = P(k|k-1)[0, 0] + σ_r², from Eq. 8 here."""
-    kf = make_local_kalman_filter(
-        "kf",
-        camera_height_m=CAMERA_M,
-        frame_period_s=PERIOD_S,
-        acceleration_variance_m2_s4=SIGMA_A2,
-        measurement_variance_m2=SIGMA_R2,
-        initial_height_m=START_M,
-        valid_range_m=(0.4, 4.0),
-        config=CONFIG,
-        detection=DETECTION,
-    )
     P0 = np.diag([CONFIG.initial_position_std_m**2, CONFIG.initial_velocity_std_m_s**2])
     _, P_prior = predict(np.array([START_M, 0.0]), P0, PERIOD_S, SIGMA_A2)
     half_width = np.sqrt(

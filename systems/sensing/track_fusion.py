@@ -14,7 +14,7 @@ every track flagged, their fusion's covariance is that large too, and says so.
 from collections.abc import Sequence
 
 import numpy as np
-from pydrake.symbolic import Expression, MakeVectorVariable, if_then_else, logical_and
+from pydrake.symbolic import Expression, MakeVectorVariable, Variable, if_then_else, logical_and
 from pydrake.systems.framework import DiagramBuilder
 
 from maskless.systems.named_symbolic_system import (
@@ -131,18 +131,23 @@ def add_track_fusion(
     )
     # The health is a system of its own on the same input vector: only its readers (the log, a
     # supervisor) pay for it, not the controller's every reading of the estimate.
+    # It reads the fused variance from the fusion's output rather than fusing again.
     used = [if_then_else(sum(flags) < 0.5, 1.0, 0.0) for flags in track_flags]
+    fused_variance = Variable("fused_variance_m2")
     health = add_named_symbolic_system(
         builder,
         f"{name}.health",
-        inputs=[("tracks", [v for _, variables in inputs for v in variables])],
+        inputs=[
+            ("tracks", [v for _, variables in inputs for v in variables]),
+            ("fused_covariance", [fused_variance, *MakeVectorVariable(3, "fused_P_rest")]),
+        ],
         outputs=[
             (
                 "health",
                 [
                     sum(used),
-                    _disagreement(states, covariances, used, detection.disagreement_sigmas),
-                    if_then_else(fused_covariance[0, 0] > detection.max_fused_std_m**2, 1.0, 0.0),
+                    _disagreement(states, raw_covariances, used, detection.disagreement_sigmas),
+                    if_then_else(fused_variance > detection.max_fused_std_m**2, 1.0, 0.0),
                 ],
             )
         ],
@@ -150,6 +155,7 @@ def add_track_fusion(
     builder.Connect(
         builder.GetSubsystemByName(f"{name}.inputs").get_output_port(), health.inputs["tracks"]
     )
+    builder.Connect(fusion.outputs["covariance"], health.inputs["fused_covariance"])
     fusion.outputs["health"] = health.outputs["health"]
     return fusion
 

@@ -162,7 +162,11 @@ def test_the_same_rows_in_process_on_a_local_pool_and_on_a_dask_cluster(tmp_path
     sweep(config, tmp_path / "one", workers=1)
     sweep(config, tmp_path / "pool", workers=2)
     with distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        local_directory=str(tmp_path),  # its scratch folder, not the shared /tmp
     ) as cluster:
         summary = sweep(config, tmp_path / "dask", scheduler=cluster.scheduler_address)
     assert summary["sweep"]["engine"].startswith("dask tcp://")
@@ -378,7 +382,11 @@ def test_two_threads_of_one_dask_worker_give_the_same_rows(tmp_path):
     config = tiny_population(tmp_path, trials=4)
     sweep(config, tmp_path / "one", workers=1)
     with distributed.LocalCluster(
-        n_workers=1, threads_per_worker=2, processes=True, dashboard_address=None
+        n_workers=1,
+        threads_per_worker=2,
+        processes=True,
+        dashboard_address=None,
+        local_directory=str(tmp_path),  # its scratch folder, not the shared /tmp
     ) as cluster:
         sweep(config, tmp_path / "threads", scheduler=cluster.scheduler_address)
     assert table_bytes(tmp_path / "threads") == table_bytes(tmp_path / "one")

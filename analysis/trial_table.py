@@ -54,6 +54,10 @@ def format_row(row: dict, columns: Sequence[str]) -> str:
     return buffer.getvalue()
 
 
+def _header(columns: Sequence[str]) -> str:
+    return format_row(dict(zip(columns, columns, strict=True)), columns)
+
+
 def read_trial_rows(path: str | Path) -> tuple[list[str], list[dict]]:
     """(columns, rows) of a trial table; a last line cut off by a kill is dropped.
 
@@ -93,7 +97,6 @@ class TrialTableWriter:
     def __init__(self, path: str | Path, columns: Sequence[str]):
         """Opens ``path`` for appending (see the class docstring)."""
         self.path, self.columns = Path(path), list(columns)
-        header = format_row(dict(zip(self.columns, self.columns, strict=True)), self.columns)
         if self.path.exists() and self.path.stat().st_size > 0:
             found, _ = read_trial_rows(self.path)
             if found != self.columns:
@@ -104,7 +107,7 @@ class TrialTableWriter:
             self._file = self.path.open("a", encoding="utf-8", newline="")
         else:
             self._file = self.path.open("w", encoding="utf-8", newline="")
-            self._file.write(header)
+            self._file.write(_header(self.columns))
             self._file.flush()
 
     def append(self, row: dict) -> None:
@@ -138,7 +141,7 @@ def write_trial_table(path: str | Path, columns: Sequence[str], rows: Iterable[d
     path = Path(path)
     partial = path.with_name(path.name + ".partial")
     with partial.open("w", encoding="utf-8", newline="") as file:
-        file.write(format_row(dict(zip(columns, columns, strict=True)), columns))
+        file.write(_header(columns))
         for row in rows:
             file.write(format_row(row, columns))
     os.replace(partial, path)

@@ -245,13 +245,16 @@ _RUNNERS = threading.local()
 
 def trial_rows(config: MonteCarloConfig, key: str, trial: int) -> list[dict]:
     """Trial ``trial``'s rows, on whichever process runs it (``key``: ``fingerprint(config)``)."""
-    runner = getattr(_RUNNERS, "runner", None)
-    # The key says which loops to build; the rest of the config (its seed count) may differ.
-    if getattr(_RUNNERS, "key", None) != key:
-        _RUNNERS.key, _RUNNERS.runner = key, TrialRunner(config)
-    elif runner.config != config:
-        runner.config = config
-    return _RUNNERS.runner.rows(trial)
+    return _runner(config, key).rows(trial)
+
+
+def _runner(config: MonteCarloConfig, key: str) -> TrialRunner:
+    """This thread's runner of the sweep ``key`` (``fingerprint(config)``), built on first use."""
+    # The fingerprint leaves the seed count out, and the runner reads it.
+    cache_key = (key, config.seeds_per_patient)
+    if getattr(_RUNNERS, "key", None) != cache_key:
+        _RUNNERS.key, _RUNNERS.runner = cache_key, TrialRunner(config)
+    return _RUNNERS.runner
 
 
 @dataclass(frozen=True)
@@ -336,7 +339,7 @@ def run_sweep(request: SweepRequest) -> dict:
         "simulated_s_per_trial": config.scenario.duration_s,
     }
     summary["files"] = {name: str(out / name) for name in (TABLE_NAME, SUMMARY_NAME, PLOT_NAME)}
-    _plot(out / PLOT_NAME, config, rows)
+    _plot(out / PLOT_NAME, config, key, rows)
     (out / SUMMARY_NAME).write_text(json.dumps(summary, indent=2) + "\n")
     return summary
 
@@ -470,11 +473,9 @@ def _bounded(
 
 
 def _killed_worker_error() -> type:
-    """Dask's error for a task whose workers kept dying (a never-raised type without Dask)."""
-    try:
-        from distributed.scheduler import KilledWorker
-    except ImportError:
-        return type("NoKilledWorker", (Exception,), {})
+    """Dask's error for a task whose workers kept dying (imported only when an error is caught)."""
+    from distributed.scheduler import KilledWorker
+
     return KilledWorker
 
 
@@ -489,33 +490,28 @@ def _exit_with_parent(parent_pid: int) -> None:
     threading.Thread(target=watch, daemon=True).start()
 
 
-class _NoBar:
-    def update(self, count: int) -> None:
-        pass
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc_info):
-        return False
-
-
 def _progress_bar(request: SweepRequest, todo: list[int]):
-    if not request.progress:
-        return _NoBar()
     from tqdm import tqdm
 
     done = request.config.trials - len(todo)
     return tqdm(
-        total=request.config.trials, initial=done, unit="trial", file=sys.stderr, smoothing=0.1
+        total=request.config.trials,
+        initial=done,
+        unit="trial",
+        file=sys.stderr,
+        smoothing=0.1,
+        disable=not request.progress,
     )
 
 
-def _plot(path: Path, config: MonteCarloConfig, rows: list[dict]) -> None:
-    """The CDFs and the worst trials' traces, re-run here (a few runs, deterministic)."""
+def _plot(path: Path, config: MonteCarloConfig, key: str, rows: list[dict]) -> None:
+    """The CDFs and the worst trials' traces, re-run here (a few runs, deterministic).
+
+    A sweep run in this process has its loops built already and reuses them.
+    """
     from maskless.analysis.population_plots import plot_population, worst_trials
 
-    runner = TrialRunner(config)
+    runner = _runner(config, key)
     traces = {
         controller: [
             ((trial, run), *runner.error_trace_mm(trial, run, controller))

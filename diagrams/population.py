@@ -30,16 +30,16 @@ from pathlib import Path
 import numpy as np
 
 from maskless.diagrams.scenario import (
-    POPULATION_PRESET_PREFIX,
     PneumaticPlant,
     Scenario,
     controller_from_shorthand,
     default_scenario,
+    shipped_presets,
     validate_scenario,
     with_presets,
 )
 from maskless.errors import ConfigError, MissingFileError
-from maskless.systems.config_loading import UNSET, asset_path, load_config, refuse_out_of_range
+from maskless.systems.config_loading import UNSET, load_config, refuse_out_of_range
 from maskless.systems.plant.pneumatic_physics import LIFT, PneumaticParameters
 from maskless.systems.plant.pneumatic_plant import (
     equilibrium_state,
@@ -126,11 +126,7 @@ class MonteCarloConfig:
 
 def preset_names() -> list[str]:
     """The shipped population presets (``--preset NAME``)."""
-    folder = asset_path("presets/paper_camera_noise.yaml").parent
-    return sorted(
-        p.stem.removeprefix(POPULATION_PRESET_PREFIX)
-        for p in folder.glob(f"{POPULATION_PRESET_PREFIX}*.yaml")
-    )
+    return list(shipped_presets(population=True))
 
 
 def population_preset_path(name: str) -> Path:
@@ -139,12 +135,10 @@ def population_preset_path(name: str) -> Path:
     Raises:
         ConfigError: no preset has that name (the message lists those that do).
     """
-    try:
-        return asset_path(f"presets/{POPULATION_PRESET_PREFIX}{name}.yaml")
-    except FileNotFoundError:
-        raise ConfigError(
-            f"no population preset {name!r}; shipped: {', '.join(preset_names())}"
-        ) from None
+    presets = shipped_presets(population=True)
+    if name not in presets:
+        raise ConfigError(f"no population preset {name!r}; shipped: {', '.join(presets)}")
+    return presets[name]
 
 
 def load_population(path: str | Path) -> MonteCarloConfig:
@@ -252,7 +246,9 @@ def _sweep_checks(config: MonteCarloConfig):
 
 
 def _ranges(population: PopulationConfig):
-    return [(f.name, getattr(population, f.name)) for f in dataclasses.fields(population)][:7]
+    """(name, UniformRange) of each drawn quantity."""
+    fields = ((f.name, getattr(population, f.name)) for f in dataclasses.fields(population))
+    return [(name, value) for name, value in fields if isinstance(value, UniformRange)]
 
 
 def sweep_scenario(config: MonteCarloConfig, levels_m, seed: int | None = None) -> Scenario:

@@ -287,12 +287,19 @@ MAX_RANDOM_SEED = 2**32 - 1
 POPULATION_PRESET_PREFIX = "population_"
 
 
+def shipped_presets(population: bool = False) -> dict[str, Path]:
+    """The shipped presets by name: scenario presets, or population ones (without their prefix)."""
+    folder = asset_path("presets/paper_camera_noise.yaml").parent
+    return {
+        path.stem.removeprefix(POPULATION_PRESET_PREFIX): path
+        for path in sorted(folder.glob("*.yaml"))
+        if path.stem.startswith(POPULATION_PRESET_PREFIX) == population
+    }
+
+
 def scenario_preset_names() -> list[str]:
     """The shipped scenario presets (``--preset NAME``), such as ``paper_camera_noise``."""
-    folder = asset_path("presets/paper_camera_noise.yaml").parent
-    return sorted(
-        p.stem for p in folder.glob("*.yaml") if not p.stem.startswith(POPULATION_PRESET_PREFIX)
-    )
+    return list(shipped_presets())
 
 
 def scenario_preset_path(name: str) -> Path:
@@ -301,11 +308,10 @@ def scenario_preset_path(name: str) -> Path:
     Raises:
         ConfigError: no scenario preset has that name (the message lists those that do).
     """
-    if name not in scenario_preset_names():
-        raise ConfigError(
-            f"no scenario preset {name!r}; shipped: {', '.join(scenario_preset_names())}"
-        )
-    return asset_path(f"presets/{name}.yaml")
+    presets = shipped_presets()
+    if name not in presets:
+        raise ConfigError(f"no scenario preset {name!r}; shipped: {', '.join(presets)}")
+    return presets[name]
 
 
 def with_presets(scenario: Scenario, presets: Sequence[str]) -> Scenario:

@@ -99,7 +99,7 @@ def add_track_fusion(
     """
     if not track_names:
         raise ValueError("make_track_fusion: track_names is empty; fusion needs at least one track")
-    inputs, states, covariances, raw_covariances, track_flags = [], [], [], [], []
+    inputs, states, covariances, raw_covariances, flag_counts = [], [], [], [], []
     for track in track_names:
         x = MakeVectorVariable(2, f"{track}_x")
         p = MakeVectorVariable(4, f"{track}_P")
@@ -111,13 +111,13 @@ def add_track_fusion(
         ]
         states.append(np.array(list(x)))
         raw_covariances.append(np.array(list(p)).reshape(2, 2))
-        # Any flag set inflates the track out of the fusion (a sum of 0/1 flags).
-        covariances.append(raw_covariances[-1] + sum(flags) * EXCLUDED_VARIANCE * np.eye(2))
-        track_flags.append(flags)
+        # Any flag set inflates the track out of the fusion (a count of 0/1 flags).
+        flag_counts.append(sum(flags))
+        covariances.append(raw_covariances[-1] + flag_counts[-1] * EXCLUDED_VARIANCE * np.eye(2))
     fused_state, fused_covariance = fuse_tracks(states, covariances)
     # With no flag set (nearly always) only Eq. 10 on the tracks as they are is evaluated: an
     # if-then-else evaluates the branch it takes, and the controller reads this every tick.
-    all_healthy = sum(sum(flags) for flags in track_flags) < 0.5
+    all_healthy = sum(flag_counts) < 0.5
     plain_state, plain_covariance = fuse_tracks(states, raw_covariances)
     chosen_state = [if_then_else(all_healthy, a, b) for a, b in _pairs(plain_state, fused_state)]
     chosen_covariance = [
@@ -132,7 +132,7 @@ def add_track_fusion(
     # The health is a system of its own on the same input vector: only its readers (the log, a
     # supervisor) pay for it, not the controller's every reading of the estimate.
     # It reads the fused variance from the fusion's output rather than fusing again.
-    used = [if_then_else(sum(flags) < 0.5, 1.0, 0.0) for flags in track_flags]
+    used = [if_then_else(count < 0.5, 1.0, 0.0) for count in flag_counts]
     fused_variance = Variable("fused_variance_m2")
     health = add_named_symbolic_system(
         builder,

@@ -18,6 +18,7 @@ import numpy as np
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, InputPort, OutputPort
 from pydrake.systems.primitives import (
     ConstantVectorSource,
+    MatrixGain,
     Multiplexer,
     Saturation,
     VectorLogSink,
@@ -36,6 +37,7 @@ from maskless.diagrams.scenario_plant import linear_plant_model, paper_valve_cur
 from maskless.errors import ConfigError
 from maskless.systems.control.offset_free_lqg import add_offset_free_lqg
 from maskless.systems.control.paper_lqg import add_paper_lqg, paper_lqg
+from maskless.systems.control.safety_supervisor import SAFETY_STATUS, add_safety_supervisor
 from maskless.systems.control.step_reference import add_step_reference
 from maskless.systems.fault_injection import add_camera_faults, add_valve_faults, camera_faults_of
 from maskless.systems.late_random_sources import LateRandomSources
@@ -47,7 +49,7 @@ from maskless.systems.plant.linear_model_plant import (
     operating_head_height_m,
 )
 from maskless.systems.plant.patient_motion import add_patient_motion
-from maskless.systems.plant.pneumatic_physics import LIFT, PneumaticParameters
+from maskless.systems.plant.pneumatic_physics import GAUGE_PRESSURE, LIFT, PneumaticParameters
 from maskless.systems.plant.pneumatic_plant import (
     add_pneumatic_plant,
     equilibrium_state,
@@ -110,6 +112,7 @@ class AddedPlant:
     outlet: InputPort
     head_height: OutputPort
     start_height_m: float
+    gauge_pressure: OutputPort | None = None
 
 
 def reference_levels(reference: ReferenceConfig, start_height_m: float) -> list[float]:
@@ -163,11 +166,17 @@ def add_plant(
             name=PNEUMATIC_PLANT_NAME,
             context_parameters=plant_context_parameters,
         )
+        # The bladder's pressure sensor (a real positioner has one): the gauge pressure state.
+        sensor = builder.AddNamedSystem(
+            "bladder_pressure_sensor", MatrixGain(np.eye(len(state))[[GAUGE_PRESSURE]])
+        )
+        builder.Connect(plant.outputs["state"], sensor.get_input_port())
         return AddedPlant(
             inlet=plant.inputs["inlet_valve_current_a"],
             outlet=plant.inputs["outlet_valve_current_a"],
             head_height=plant.outputs["head_height_m"],
             start_height_m=p.rest_head_height_m + state[LIFT],
+            gauge_pressure=sensor.get_output_port(),
         )
     model, camera_height_m = linear_plant_model(config)
     plant = add_linear_model_plant(
@@ -469,9 +478,6 @@ def assemble_loop(
     feed the controller, if any); every output is exported and logged; the Diagram is built and
     named.
     """
-    # A stuck valve sees its stuck current; the controller and the log see its command.
-    builder.Connect(add_valve_faults(builder, config.faults, "inlet", drive.inlet), plant.inlet)
-    builder.Connect(add_valve_faults(builder, config.faults, "outlet", drive.outlet), plant.outlet)
     # The scenario models' RandomSources are added last, so switching one on changes no draw of
     # the others (late_random_sources).
     late = LateRandomSources()
@@ -489,19 +495,28 @@ def assemble_loop(
             sensing.fusion.outputs["estimated_state"], controller.inputs["fused_estimated_state"]
         )
         builder.Connect(drive.reference, controller.inputs["reference_head_height_m"])
-    loggers = export_and_log(
-        builder,
-        config,
-        sensing,
-        {
-            "reference_head_height_m": drive.reference,
-            "head_height_m": head_height,
-            "inlet_valve_current_a": drive.inlet,
-            "outlet_valve_current_a": drive.outlet,
-        },
-        drive.period_s,
-        record,
-    )
+    logged = {
+        "reference_head_height_m": drive.reference,
+        "head_height_m": head_height,
+        "inlet_valve_current_a": drive.inlet,
+        "outlet_valve_current_a": drive.outlet,
+    }
+    valves = (drive.inlet, drive.outlet)
+    if config.safety.enabled and drive.controller is not None:
+        safety = _add_supervisor(builder, config, plant, drive, sensing)
+        valves = (safety.outputs["inlet_valve_current_a"], safety.outputs["outlet_valve_current_a"])
+        for port in ("inlet_valve_current_a", "outlet_valve_current_a", *SAFETY_STATUS):
+            logged[f"safety.{port}"] = safety.outputs[port]
+        logged["safety.estimated_head_height_m"] = drive.controller.outputs[
+            "estimated_head_height_m"
+        ]
+    if plant.gauge_pressure is not None:
+        logged["plant.bladder_gauge_pressure_pa"] = plant.gauge_pressure
+    # A stuck valve sees its stuck current; the controller and the log see its command.
+    ports = (plant.inlet, plant.outlet)
+    for valve, command, port in zip(("inlet", "outlet"), valves, ports, strict=True):
+        builder.Connect(add_valve_faults(builder, config.faults, valve, command), port)
+    loggers = export_and_log(builder, config, sensing, logged, drive.period_s, record)
     late.add_all(builder)
     diagram = builder.Build()
     diagram.set_name(diagram_name)
@@ -516,6 +531,40 @@ def assemble_loop(
         loggers=loggers,
         frames=frames,
     )
+
+
+def _add_supervisor(builder, config: Scenario, plant: AddedPlant, drive: LoopDrive, sensing):
+    """The safety supervisor between ``drive``'s commands and the valves (safety_supervisor)."""
+    p = config.pneumatic
+    pressure = plant.gauge_pressure
+    if pressure is None:  # a model plant has no bladder: its pressure check never fires
+        pressure = builder.AddNamedSystem("no_pressure_sensor", ConstantVectorSource([0.0]))
+        pressure = pressure.get_output_port()
+    low = p.rest_head_height_m + p.min_lift_m
+    high = p.rest_head_height_m + p.max_lift_m
+    safety = add_safety_supervisor(
+        builder,
+        config.safety,
+        period_s=drive.period_s,
+        camera_count=len(config.cameras),
+        head_height_limits_m=(low, high),
+        tolerance_m=config.metrics.tolerance_m,
+        inlet_saturation_a=p.inlet.saturation_current_a,
+        outlet_saturation_a=p.outlet.saturation_current_a,
+    )
+    reset = builder.AddNamedSystem("safety_reset", ConstantVectorSource([0.0]))
+    for port, source in (
+        ("inlet_command_a", drive.inlet),
+        ("outlet_command_a", drive.outlet),
+        ("fused_estimated_state", sensing.fusion.outputs["estimated_state"]),
+        ("fusion_health", sensing.fusion.outputs["health"]),
+        ("reference_head_height_m", drive.reference),
+        ("estimated_head_height_m", drive.controller.outputs["estimated_head_height_m"]),
+        ("bladder_gauge_pressure_pa", pressure),
+        ("reset", reset.get_output_port()),
+    ):
+        builder.Connect(source, safety.inputs[port])
+    return safety
 
 
 def logged_signals(

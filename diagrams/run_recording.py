@@ -10,14 +10,17 @@ import numpy as np
 
 from maskless.diagrams.closed_loop import Signal
 from maskless.recording import (
+    BLADDER_PRESSURE_TOPIC,
     COMMAND_TOPIC,
     FUSION_TOPIC,
     HEAD_HEIGHT_TOPIC,
     REFERENCE_TOPIC,
+    SAFETY_TOPIC,
     Channel,
     filter_estimate_topic,
     sensor_measurement_topic,
 )
+from maskless.systems.control.safety_supervisor import safety_states
 
 
 def _nanoseconds(times_s: np.ndarray) -> np.ndarray:
@@ -80,4 +83,32 @@ def signal_channels(s: dict[str, Signal], sensor_names: list[str]) -> list[Chann
             },
         )
     )
+    if "safety.beam_hold" in s:
+        channels.append(_safety_channel(s))
+    if "plant.bladder_gauge_pressure_pa" in s:
+        pressure = s["plant.bladder_gauge_pressure_pa"]
+        channels.append(
+            Channel(
+                BLADDER_PRESSURE_TOPIC,
+                _nanoseconds(pressure.times_s),
+                {"gauge_pressure_pa": pressure.values[0]},
+            )
+        )
     return channels
+
+
+def _safety_channel(s: dict[str, Signal]) -> Channel:
+    """The supervisor's state, latched reasons and beam hold at each tick (``/safety/status``)."""
+    states, reasons = safety_states(s["safety.mode"].values[0], s["safety.reasons"].values)
+    return Channel(
+        SAFETY_TOPIC,
+        _nanoseconds(s["safety.beam_hold"].times_s),
+        {
+            "state": states,
+            "reasons": reasons,
+            "beam_hold": s["safety.beam_hold"].values[0] > 0.5,
+            "estimated_head_height_m": s["safety.estimated_head_height_m"].values[0],
+            "inlet_valve_current_a": s["safety.inlet_valve_current_a"].values[0],
+            "outlet_valve_current_a": s["safety.outlet_valve_current_a"].values[0],
+        },
+    )

@@ -9,6 +9,7 @@ import numpy as np
 
 from maskless.analysis.detection_figures import detection_latency_s, flag_figures
 from maskless.analysis.metrics import estimate_error_std_m, tracking_metrics
+from maskless.analysis.safety_figures import SafetyLog, safety_figures, time_to_safe_state_s
 from maskless.systems.control.offset_free_lqg import closed_loop_poles as offset_free_poles
 from maskless.systems.control.paper_lqg import closed_loop_poles
 from maskless.systems.sensing.fault_detection import FUSION_HEALTH, TRACK_FLAGS
@@ -58,6 +59,11 @@ def summarize(run: "SimulationRun") -> dict:
     )
 
     detection = _detection(config, loop, s)
+    safety = _safety(config, s)
+    if safety is not None:
+        for name, fault in detection["faults"].items():
+            reason, latency = time_to_safe_state_s(safety_log(s), config.faults[name].start_s)
+            fault["safe_state_reason"], fault["safe_state_latency_s"] = reason, latency
     paper = config.paper
     inlet = s["inlet_valve_current_a"].values[0]
     outlet = s["outlet_valve_current_a"].values[0]
@@ -96,6 +102,7 @@ def summarize(run: "SimulationRun") -> dict:
         },
         "estimation": estimation,
         "fault_detection": detection,
+        **({"safety": safety} if safety is not None else {}),
         "valve_commands": commands,
         "paper_model" if loop.controller == "paper-lqg" else "offset_free_lqg": controller,
         "paper_reported": {
@@ -141,6 +148,33 @@ def _detection(config, loop, s) -> dict:
             "fewest_tracks_used": int(round(float(tracks_used.min()))),
         },
         "faults": faults,
+    }
+
+
+def safety_log(s: dict) -> SafetyLog:
+    """The supervisor's logged signals with the truth it is judged against."""
+    pressure = s.get("plant.bladder_gauge_pressure_pa")
+    return SafetyLog(
+        times_s=s["safety.beam_hold"].times_s,
+        head_height_m=s["head_height_m"].values[0],
+        reference_m=s["reference_head_height_m"].values[0],
+        beam_hold=s["safety.beam_hold"].values[0],
+        reasons=s["safety.reasons"].values,
+        mode=s["safety.mode"].values[0],
+        inlet_a=s["safety.inlet_valve_current_a"].values[0],
+        outlet_a=s["safety.outlet_valve_current_a"].values[0],
+        gauge_pressure_pa=None if pressure is None else pressure.values[0],
+    )
+
+
+def _safety(config, s) -> dict | None:
+    """The supervisor's figures, or None for a loop without one."""
+    if "safety.beam_hold" not in s:
+        return None
+    return {
+        "tolerance_mm": m_to_mm(config.metrics.tolerance_m),
+        "max_gauge_pressure_limit_kpa": config.safety.max_gauge_pressure_pa / 1e3,
+        **safety_figures(safety_log(s), config.metrics.tolerance_m),
     }
 
 
@@ -244,6 +278,8 @@ def format_summary(summary: dict) -> str:
         f"of at most {reported['fused_std_mm']:g} mm"
     )
     lines += _format_detection(summary["fault_detection"])
+    if "safety" in summary:
+        lines += _format_safety(summary["safety"])
     c = summary["valve_commands"]
     lines += [
         "",
@@ -289,8 +325,49 @@ def _format_detection(d: dict) -> list[str]:
             if fault["detected_by"]
             else "NOT detected"
         )
-        lines.append(f"  fault {name!r} ({fault['kind']} from {fault['start_s']:g} s): {found}")
+        safe = ""
+        if fault.get("safe_state_reason"):
+            safe = (
+                f"; safe state ({fault['safe_state_reason']}) after "
+                f"{fault['safe_state_latency_s']:.2f} s"
+            )
+        elif "safe_state_reason" in fault:
+            safe = "; no safe state"
+        lines.append(
+            f"  fault {name!r} ({fault['kind']} from {fault['start_s']:g} s): {found}{safe}"
+        )
     return lines
+
+
+def _format_safety(f: dict) -> list[str]:
+    """The supervisor's state at the end, what it latched and did, and the beam's times."""
+    latched = ", ".join(f["latched_at_end"]) or "nothing latched"
+    lines = ["", f"Safety: {f['state_at_end']} at the end ({latched})"]
+    lines += [
+        f"  {e['reason']} at {e['first_s']:.2f} s: {_ACTION_WORDS[e['action']]}"
+        for e in f["events"]
+    ]
+    band = f["tolerance_mm"]
+    lines.append(
+        f"  beam held {100 * f['beam_hold_fraction']:.1f} % of the run ({f['beam_hold_s']:.1f} s), "
+        f"on {f['beam_on_s']:.1f} s; on while the head was beyond ±{band:g} mm: "
+        f"{f['beam_on_while_off_target_s']:.3f} s; held while it was within: "
+        f"{f['beam_held_while_on_target_s']:.1f} s"
+    )
+    if "max_gauge_pressure_kpa" in f:
+        lines.append(
+            f"  bladder pressure at most {f['max_gauge_pressure_kpa']:.2f} kPa "
+            f"(limit {f['max_gauge_pressure_limit_kpa']:g} kPa)"
+        )
+    return lines
+
+
+# What each safe action does, as the summary says it.
+_ACTION_WORDS = {
+    "continue": "the loop goes on, the beam held",
+    "hold": "the valves hold their currents, the beam held",
+    "vent": "the bladder vents to its resting height, the beam held",
+}
 
 
 def _format_paper_model(p: dict) -> list[str]:

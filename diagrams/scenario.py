@@ -30,6 +30,7 @@ from maskless.systems.config_loading import (
     load_config,
 )
 from maskless.systems.control.offset_free_lqg import OffsetFreeLqgWeights
+from maskless.systems.control.safety_supervisor import SafetyConfig, validate_safety
 from maskless.systems.fault_injection import FaultConfig, validate_faults
 from maskless.systems.limits import DURATION_S, IMAGE_RATE_HZ
 from maskless.systems.paper_parameters import (
@@ -252,6 +253,7 @@ class Scenario:
         faults: name -> a fault injected into a camera or a valve over a time window
             (``systems/fault_injection.py``); the controller's design never sees them.
         fault_detection: the estimator's checks of each camera and of the fused estimate.
+        safety: the supervisor between the controller and the valves, and its limits.
     """
 
     random_seed: int = 0
@@ -266,6 +268,7 @@ class Scenario:
     cameras: dict[str, Camera] = field(default_factory=dict)
     local_filter: LocalFilterConfig = field(default_factory=LocalFilterConfig)
     fault_detection: FaultDetectionConfig = field(default_factory=FaultDetectionConfig)
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
     metrics: MetricsConfig = field(default_factory=MetricsConfig)
     paper: PaperParameters = field(default_factory=PaperParameters)
     pneumatic: PneumaticParameters = field(default_factory=PneumaticParameters)
@@ -427,6 +430,7 @@ def validate_scenario(config: Scenario) -> None:
     validate_patient_motion(config.patient_motion)
     validate_faults(config.faults, list(config.cameras))
     validate_fault_detection(config.fault_detection)
+    validate_safety(config.safety, config.metrics.tolerance_m)
     for field_name in ("initial_position_std_m", "initial_velocity_std_m_s"):
         value = getattr(config.local_filter, field_name)
         require(value > 0, f"local_filter.{field_name}", value, "a positive std")

@@ -35,6 +35,10 @@ topic                              fields
 ``/filters/NAME/estimate``         ``head_height_m``, ``head_velocity_m_s``, ``covariance``
 ``/fusion/estimate``               ``head_height_m``, ``head_velocity_m_s``, ``covariance``
 ``/controller/command``            ``inlet_valve_current_a``, ``outlet_valve_current_a``
+``/safety/status``                 ``state``, ``reasons``, ``beam_hold``,
+                                   ``estimated_head_height_m``, ``inlet_valve_current_a``,
+                                   ``outlet_valve_current_a``
+``/plant/bladder_pressure``        ``gauge_pressure_pa`` (the pneumatic plant's sensor)
 =================================  =============================================================
 
 An estimate comes from the ports ``estimated_state`` ([height, velocity]) and ``covariance``. Its
@@ -62,12 +66,14 @@ whole). The names below are theirs, re-exported.
 
 from maskless.recording.encoding import Channel
 from maskless.recording.format import (
+    BLADDER_PRESSURE_TOPIC,
     CAMERA_MESSAGE_ENCODING,
     COMMAND_TOPIC,
     FUSION_TOPIC,
     HEAD_HEIGHT_TOPIC,
     MESSAGE_ENCODING,
     REFERENCE_TOPIC,
+    SAFETY_TOPIC,
     SCHEMA_ENCODING,
     SCHEMA_VERSION,
     current_name,
@@ -90,12 +96,14 @@ from maskless.sensor_names import is_sensor_name as is_sensor_name
 # sensor-name check (imported from here by diagrams.scenario) are public too, but outside __all__
 # as they were: each is imported "as" itself, which marks it as re-exported.
 __all__ = [
+    "BLADDER_PRESSURE_TOPIC",
     "CAMERA_MESSAGE_ENCODING",
     "COMMAND_TOPIC",
     "FUSION_TOPIC",
     "HEAD_HEIGHT_TOPIC",
     "MESSAGE_ENCODING",
     "REFERENCE_TOPIC",
+    "SAFETY_TOPIC",
     "SCHEMA_ENCODING",
     "SCHEMA_VERSION",
     "Channel",

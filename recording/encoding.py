@@ -21,7 +21,7 @@ from maskless.camera_images import (
     image_message,
     image_topic,
 )
-from maskless.recording.format import _BOOLEAN, schema_for_topic
+from maskless.recording.format import _BOOLEAN, _STRING, schema_for_topic
 
 
 # eq=False: fields hold arrays, so field-wise == and hashing would fail.
@@ -89,6 +89,9 @@ def _prepare_channel(channel: Channel) -> tuple[np.ndarray, list[str], list[list
             )
         # astype + tolist gives Python float/bool objects in one vectorised step, the same values
         # float()/bool() would give, without per-message numpy scalar overhead.
+        if kind == _STRING:
+            lists.append([str(value) for value in values.tolist()])
+            continue
         dtype = bool if kind == _BOOLEAN else np.float64
         lists.append(values.astype(dtype, copy=False).tolist())
     return times, list(required), lists
@@ -107,7 +110,7 @@ def _encode_payloads(topic: str, names: list[str], lists: list[list[Any]]) -> li
     finite = all(
         np.isfinite(np.asarray(column, dtype=float)).all()
         for column, kind in zip(lists, kinds, strict=True)
-        if kind != _BOOLEAN
+        if kind not in (_BOOLEAN, _STRING)
     )
     if not finite:
         return [
@@ -120,6 +123,9 @@ def _encode_payloads(topic: str, names: list[str], lists: list[list[Any]]) -> li
             parts.append(f'"{name}":[[%r,%r],[%r,%r]]')
             flat = np.asarray(column, dtype=float).reshape(-1, 4).T.tolist()
             flat_columns.extend(flat)
+        elif kind == _STRING:
+            parts.append(f'"{name}":%s')
+            flat_columns.append([json.dumps(value) for value in column])
         elif kind == _BOOLEAN:
             parts.append(f'"{name}":%s')
             flat_columns.append(["true" if value else "false" for value in column])

@@ -28,6 +28,8 @@ REFERENCE_TOPIC = "/reference"
 HEAD_HEIGHT_TOPIC = "/plant/head_height"
 FUSION_TOPIC = "/fusion/estimate"
 COMMAND_TOPIC = "/controller/command"
+SAFETY_TOPIC = "/safety/status"
+BLADDER_PRESSURE_TOPIC = "/plant/bladder_pressure"
 
 _SENSOR_TOPIC = re.compile(r"/sensors/([A-Za-z0-9_]+)/measurement")
 _FILTER_TOPIC = re.compile(r"/filters/([A-Za-z0-9_]+)/estimate")
@@ -36,6 +38,7 @@ _SCHEMA_NAME = re.compile(r"maskless\.[A-Za-z]+(?:\.v([0-9]+))?")
 
 _NUMBER = "number"
 _BOOLEAN = "boolean"
+_STRING = "string"
 
 _COVARIANCE_SCHEMA: dict[str, Any] = {
     "type": "array",
@@ -120,6 +123,44 @@ _SCHEMAS: dict[str, dict[str, Any]] = {
             },
         },
     ),
+    "maskless.SafetyStatus": _object_schema(
+        "maskless.SafetyStatus",
+        "The safety supervisor's state at a controller tick "
+        "(systems/control/safety_supervisor.py). Units: metres (m), amperes (A).",
+        {
+            "state": {
+                "type": _STRING,
+                "description": "normal, degraded (a camera excluded, the loop goes on), "
+                "holding (the valves hold their currents) or venting (the bladder empties)",
+            },
+            "reasons": {
+                "type": _STRING,
+                "description": "the latched reasons, comma-separated; empty when none",
+            },
+            "beam_hold": {
+                "type": _BOOLEAN,
+                "description": "true while the beam must not be on",
+            },
+            "estimated_head_height_m": {
+                "type": _NUMBER,
+                "description": "the controller's estimate of the head height, which the beam "
+                "hold judges the error by (m)",
+            },
+            "inlet_valve_current_a": {
+                "type": _NUMBER,
+                "description": "the current the inlet valve gets (A)",
+            },
+            "outlet_valve_current_a": {
+                "type": _NUMBER,
+                "description": "the current the outlet valve gets (A)",
+            },
+        },
+    ),
+    "maskless.BladderPressure": _object_schema(
+        "maskless.BladderPressure",
+        "The bladder's pressure sensor. Units: pascals (Pa), gauge.",
+        {"gauge_pressure_pa": {"type": _NUMBER, "description": "gauge pressure (Pa)"}},
+    ),
 }
 
 _FIXED_TOPIC_SCHEMAS: dict[str, str] = {
@@ -127,6 +168,8 @@ _FIXED_TOPIC_SCHEMAS: dict[str, str] = {
     HEAD_HEIGHT_TOPIC: "maskless.HeadHeight",
     FUSION_TOPIC: "maskless.StateEstimate",
     COMMAND_TOPIC: "maskless.ValveCommand",
+    SAFETY_TOPIC: "maskless.SafetyStatus",
+    BLADDER_PRESSURE_TOPIC: "maskless.BladderPressure",
 }
 
 # The one table of what version 1 named otherwise: its topics (old -> current), and its fields

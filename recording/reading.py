@@ -27,6 +27,7 @@ from maskless.errors import MissingFileError, RecordError
 from maskless.recording.format import (
     _BOOLEAN,
     _SCHEMA_NAME,
+    _STRING,
     CAMERA_MESSAGE_ENCODING,
     CUT_METADATA,
     MESSAGE_ENCODING,
@@ -63,8 +64,8 @@ class Recording:
 
         Returns:
             ``(times_ns, values)``: ``times_ns`` is int64 (ns); ``values`` is float64 for numbers
-            (in the field's unit), bool for booleans, and ``(n, 2, 2)`` float64 for
-            ``"covariance"``.
+            (in the field's unit), bool for booleans, str for strings, and ``(n, 2, 2)``
+            float64 for ``"covariance"``.
 
         Raises:
             KeyError: If the topic is not in the recording or a message lacks the field.
@@ -95,6 +96,8 @@ def _field_layout(topic: str, field: str) -> tuple[type | None, tuple[int, ...]]
         return None, ()
     if prop["type"] == _BOOLEAN:
         return bool, ()
+    if prop["type"] == _STRING:
+        return str, ()
     if prop["type"] == "array":
         return np.float64, (2, 2)
     return np.float64, ()

@@ -266,6 +266,7 @@ def add_offset_free_lqg(
         - inlet_valve_current_a
         - outlet_valve_current_a
         - command
+        - estimated_head_height_m
 
     Args:
         builder: where the controller goes.
@@ -278,7 +279,9 @@ def add_offset_free_lqg(
     The state is [x̂⁻ (n), d̂, delayed heights, held command deviation, inlet and outlet
     currents], stored as offsets from that start (a SymbolicVectorSystem's default state is zero).
     The command changes only at ticks and takes effect right after the tick that read the
-    measurement.
+    measurement. ``estimated_head_height_m`` is the model's height now, predicted from the last
+    tick's corrected estimate and command (the measurement it corrects with is ticks old): the
+    safety supervisor gates the beam on it.
     """
     model = design.model
     n = model.A.shape[0]
@@ -321,6 +324,7 @@ def add_offset_free_lqg(
             ("inlet_valve_current_a", [start_currents[0] + current_offsets[0]]),
             ("outlet_valve_current_a", [start_currents[1] + current_offsets[1]]),
             ("command", [model.operating_input + held_command]),
+            ("estimated_head_height_m", [model.operating_output + (model.C @ predicted[:n])[0]]),
         ],
         state=[*predicted_offset, held_command_offset, *current_offsets],
         dynamics=[

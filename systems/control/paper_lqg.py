@@ -132,6 +132,7 @@ def add_paper_lqg(
         - applied_current_a
         output_ports:
         - valve_current_a
+        - estimated_head_height_m
 
     Args:
         builder: where the controller's systems go.
@@ -175,7 +176,14 @@ def add_paper_lqg(
             ("reference_head_height_m", [reference_height]),
             ("applied_current_a", [applied]),
         ],
-        outputs=[("valve_current_a", [command])],
+        outputs=[
+            ("valve_current_a", [command]),
+            # The head height the estimate x̂ stands for (the safety supervisor's beam hold).
+            (
+                "estimated_head_height_m",
+                [camera_height_m - model.operating_output - (C @ x_hat)[0]],
+            ),
+        ],
         state=[*x_hat, held_reference],
         dynamics=[*next_x_hat, model_output(reference_height)],
         time_period=model.sample_period_s,

@@ -1,0 +1,423 @@
+"""The safety supervisor between the controller and the valves, and the beam-hold signal.
+
+Each controller tick it checks what the loop knows (never the simulated truth) and latches a
+reason when a check fails; a latched reason stays until the ``reset`` input is raised at a tick.
+Each reason has its safe action (``SAFE_ACTIONS``):
+
+- ``camera_excluded`` (continue): the fusion uses fewer cameras than it has (a camera's own
+  checks flagged it, ``fault_detection``). The loop goes on with the others (degraded mode):
+  holding the air would be no safer than a loop that still sees the head.
+- ``no_camera`` (hold): the fusion uses no camera.
+- ``cameras_disagree`` (hold): two cameras the fusion uses disagree, and nothing says which one
+  is wrong.
+- ``estimate_uncertain`` (hold): the fused height's std is above its bound.
+- ``outside_travel`` (hold): a camera sees the head outside the bladder's travel, widened by
+  ``travel_margin_m`` (or the estimate is not finite): no height the bladder can give.
+- ``non_finite_command`` (hold): a valve command is NaN or infinite. It is never passed on: the
+  held currents replace it in the same tick.
+- ``inlet_full_too_long`` (hold): the inlet has been fully open for ``max_full_inlet_s`` in a row
+  (a valve stuck, a lost supply or a leak the loop cannot beat).
+- ``pressure_jump`` (continue): the bladder's pressure moved by more than
+  ``max_pressure_step_pa`` in one tick, once the reference has held still for
+  ``pressure_watch_delay_s``. The loop holds the head still then (its corrections move the
+  pressure by a few pascals a tick), so the air moved by itself: a valve stuck open or shut, a
+  seam opening, the supply lost. The pressure sensor sees it at once, where the cameras see the
+  head move a quarter of a second later (their latency and noise). The loop goes on: it is what
+  can still fight a stuck inlet with the outlet (held currents could not: measured, the head
+  rose 6.2 mm holding and 4.3 mm with the loop on, assets/faults/inlet-stuck-open.yaml).
+- ``overpressure`` (vent): the bladder's gauge pressure (its sensor) is above
+  ``max_gauge_pressure_pa``, or the sensor reads no number.
+
+The estimate's checks start after ``start_grace_s``: the filters begin from a guess and are
+uncertain by design for their first frames.
+
+Hold: the valves keep the currents the loop commanded while nothing was latched and the inlet
+was not fully open, averaged over ``hold_time_constant_s`` (an exponential average: the few ticks
+a fault misleads the controller before it is caught barely move it). Open loop, they hold the head
+about where the loop last had it. Shutting both valves would not: the bladder's standing leak sets
+where the head rests for a given inlet opening (``pneumatic.yaml``), so a shut bladder drains
+(measured: both cameras lost, both valves shut, the head dropped 11 mm in the next minute).
+Vent: the inlet shuts and the outlet opens fully, so the bladder empties and the head comes down to
+its resting height: a bladder above its pressure limit may burst, and resting on the empty bladder
+is where the patient lay down.
+
+``beam_hold`` is 1 whenever a reason is latched or a command is not finite, and until the error
+that the controller's model-based estimate shows (``estimated_head_height_m``) has stayed within
+the tolerance less ``estimate_margin_m`` for ``beam_dwell_s``, and the fused camera estimate's
+error is within ``fused_error_band_m`` (a head that moves faster than the model's estimate
+follows shows there first). A linac gates on it.
+
+The decisions are taken at ticks and held as state, and the pressure is read only at ticks: the
+plant reads the valve currents at every integrator step, and an output that depended on the
+plant's continuous state would be evaluated at each.
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.symbolic import (
+    Expression,
+    Variable,
+    if_then_else,
+    logical_and,
+    logical_not,
+    logical_or,
+)
+from pydrake.systems.framework import DiagramBuilder
+
+from maskless.systems.config_loading import UNSET, refuse_out_of_range
+from maskless.systems.named_symbolic_system import (
+    PortMap,
+    add_named_symbolic_system,
+    building_expressions,
+)
+
+CONTINUE, HOLD, VENT = "continue", "hold", "vent"
+# Each reason and its safe action (the module docstring says why).
+SAFE_ACTIONS = {
+    "camera_excluded": CONTINUE,
+    "no_camera": HOLD,
+    "cameras_disagree": HOLD,
+    "estimate_uncertain": HOLD,
+    "outside_travel": HOLD,
+    "non_finite_command": HOLD,
+    "inlet_full_too_long": HOLD,
+    "pressure_jump": CONTINUE,
+    "overpressure": VENT,
+}
+REASONS = tuple(SAFE_ACTIONS)
+# The ``mode`` output: what the valves get.
+MODES = ("pass", HOLD, VENT)
+# The outputs that say what the supervisor decided (the rest are the valves' currents).
+SAFETY_STATUS = ("reasons", "mode", "beam_hold")
+# A command beyond this is no current a valve driver takes (A): treated as non-finite. NaN fails
+# every comparison, so "inside the bound" is false for it too.
+_COMMAND_BOUND_A = 1.0e3
+
+
+@dataclass
+class SafetyConfig:
+    """The supervisor's limits; a section not ``enabled`` needs nothing else.
+
+    Attributes:
+        enabled: put the supervisor between the controller and the valves.
+        start_grace_s: the estimate's checks start after this (s).
+        travel_margin_m: how far outside the bladder's travel an estimate may lie (m).
+        max_gauge_pressure_pa: the bladder's pressure limit (Pa, gauge).
+        max_full_inlet_s: the longest the inlet may be fully open in a row (s).
+        max_pressure_step_pa: the largest pressure change in one tick of a still loop (Pa).
+        pressure_watch_delay_s: the loop is still this long after the reference last moved (s).
+        estimate_margin_m: the beam is held while the controller's estimated error is within
+            this much of the tolerance (m).
+        fused_error_band_m: ...or while the fused camera estimate's error is beyond this (m).
+        beam_dwell_s: ...and until the estimated error has stayed inside for this long (s).
+        hold_time_constant_s: the time constant of the average of the commands held (s).
+    """
+
+    enabled: bool = False
+    start_grace_s: float = UNSET
+    travel_margin_m: float = UNSET
+    max_gauge_pressure_pa: float = UNSET
+    max_full_inlet_s: float = UNSET
+    max_pressure_step_pa: float = UNSET
+    pressure_watch_delay_s: float = UNSET
+    estimate_margin_m: float = UNSET
+    fused_error_band_m: float = UNSET
+    beam_dwell_s: float = UNSET
+    hold_time_constant_s: float = UNSET
+
+
+def validate_safety(config: SafetyConfig, tolerance_m: float) -> None:
+    """Raises ConfigError naming ``safety.FIELD`` when a limit is out of range."""
+    if not config.enabled:
+        return
+    positive = "a positive, finite value"
+    refuse_out_of_range(
+        "safety",
+        config,
+        [
+            (0 <= config.start_grace_s < math.inf, "start_grace_s", "a time >= 0"),
+            (0 <= config.travel_margin_m < math.inf, "travel_margin_m", "a margin >= 0"),
+            (0 < config.max_gauge_pressure_pa < math.inf, "max_gauge_pressure_pa", positive),
+            (0 < config.max_full_inlet_s < math.inf, "max_full_inlet_s", positive),
+            (0 < config.max_pressure_step_pa < math.inf, "max_pressure_step_pa", positive),
+            (
+                0 <= config.pressure_watch_delay_s < math.inf,
+                "pressure_watch_delay_s",
+                "a time >= 0",
+            ),
+            (
+                0 <= config.estimate_margin_m < tolerance_m,
+                "estimate_margin_m",
+                f"a margin >= 0 and below metrics.tolerance_m ({tolerance_m} m)",
+            ),
+            (0 < config.fused_error_band_m < math.inf, "fused_error_band_m", positive),
+            (0 <= config.beam_dwell_s < math.inf, "beam_dwell_s", "a time >= 0"),
+            (0 < config.hold_time_constant_s < math.inf, "hold_time_constant_s", positive),
+        ],
+    )
+
+
+def safety_states(mode: np.ndarray, reasons: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample of the ``mode`` and ``reasons`` outputs: the state's name and the latched reasons.
+
+    The state is ``normal``, ``degraded`` (only reasons whose action is to continue are latched),
+    ``holding`` or ``venting``; the reasons are comma-separated, empty when none.
+    """
+    latched = np.asarray(reasons) > 0.5
+    names = np.array(
+        [",".join(r for r, on in zip(REASONS, column, strict=True) if on) for column in latched.T],
+        dtype=object,
+    )
+    state = np.where(latched.any(axis=0), "degraded", "normal").astype(object)
+    state[np.asarray(mode) > 0.5] = "holding"
+    state[np.asarray(mode) > 1.5] = "venting"
+    return state, names
+
+
+def _any(formulas):
+    """The disjunction of ``formulas``."""
+    formulas = list(formulas)
+    result = formulas[0]
+    for formula in formulas[1:]:
+        result = logical_or(result, formula)
+    return result
+
+
+def _within(value, low, high):
+    """``low <= value <= high``, false for NaN (every comparison with NaN is)."""
+    return logical_and(value >= low, value <= high)
+
+
+@building_expressions
+def add_safety_supervisor(
+    builder: DiagramBuilder,
+    config: SafetyConfig,
+    *,
+    period_s: float,
+    camera_count: int,
+    head_height_limits_m: tuple[float, float],
+    tolerance_m: float,
+    inlet_saturation_a: float,
+    outlet_saturation_a: float,
+    name: str = "safety",
+) -> PortMap:
+    """Adds the supervisor (module docstring).
+
+    .. pydrake_system::
+
+        name: safety
+        input_ports:
+        - inlet_command_a
+        - outlet_command_a
+        - fused_estimated_state
+        - fusion_health
+        - reference_head_height_m
+        - estimated_head_height_m
+        - bladder_gauge_pressure_pa
+        - reset
+        output_ports:
+        - inlet_valve_current_a
+        - outlet_valve_current_a
+        - reasons
+        - mode
+        - beam_hold
+
+    Args:
+        builder: where it goes.
+        config: its limits.
+        period_s: its tick, the controller's (s).
+        camera_count: the cameras the fusion has.
+        head_height_limits_m: the head heights the bladder's travel allows (m).
+        tolerance_m: the clinical band for the beam hold (m).
+        inlet_saturation_a: the inlet's fully open current (A).
+        outlet_saturation_a: the outlet's fully open current (A).
+        name: the system's name.
+
+    ``reasons`` holds one latched flag per ``REASONS`` entry; ``mode`` is the index in ``MODES``
+    of what the valves get (the commands, the held currents, or venting).
+
+    One SymbolicVectorSystem: splitting the checks, the latches and the valves' gate into systems
+    of their own measured no faster (each system adds its own cache and event work at every tick).
+    """
+    inlet, outlet = Variable("inlet_command_a"), Variable("outlet_command_a")
+    fused_height, fused_velocity = Variable("fused_height_m"), Variable("fused_velocity_m_s")
+    tracks_used, disagreement, uncertain = (
+        Variable(n) for n in ("tracks_used", "disagreement", "uncertain")
+    )
+    reference, estimated, pressure, reset = (
+        Variable(n)
+        for n in (
+            "reference_head_height_m",
+            "estimated_head_height_m",
+            "gauge_pressure_pa",
+            "reset",
+        )
+    )
+    latched = {reason: Variable(f"latched_{reason}") for reason in REASONS}
+    mode = Variable("mode")
+    held_inlet, held_outlet = Variable("held_inlet_a"), Variable("held_outlet_a")
+    elapsed_s, full_inlet_s, inside_s = (
+        Variable(n) for n in ("elapsed_s", "full_inlet_s", "inside_s")
+    )
+    beam_allowed = Variable("beam_allowed")
+    last_pressure = Variable("last_gauge_pressure_pa")
+    # How long the reference has held still, and the reference it holds.
+    steady_s, last_reference = Variable("steady_s"), Variable("last_reference_m")
+    low, high = head_height_limits_m
+    margin = config.travel_margin_m
+    commands_finite = _commands_finite(inlet, outlet)
+    inlet_out, outlet_out = _valve_currents(
+        inlet, outlet, mode, held_inlet, held_outlet, commands_finite, outlet_saturation_a
+    )
+    at_full_inlet = inlet_out >= inlet_saturation_a
+    watching = elapsed_s >= config.start_grace_s
+    seen = tracks_used > 0.5
+    failing = {
+        "camera_excluded": logical_and(watching, tracks_used < camera_count - 0.5),
+        "no_camera": logical_and(watching, logical_not(seen)),
+        "cameras_disagree": logical_and(watching, disagreement > 0.5),
+        "estimate_uncertain": logical_and(watching, uncertain > 0.5),
+        "outside_travel": logical_and(
+            logical_and(watching, seen),
+            logical_not(_within(fused_height, low - margin, high + margin)),
+        ),
+        "non_finite_command": logical_not(commands_finite),
+        "inlet_full_too_long": logical_and(
+            at_full_inlet, full_inlet_s + period_s >= config.max_full_inlet_s
+        ),
+        "pressure_jump": logical_and(
+            steady_s >= config.pressure_watch_delay_s,
+            logical_not(
+                _within(
+                    pressure - last_pressure,
+                    -config.max_pressure_step_pa,
+                    config.max_pressure_step_pa,
+                )
+            ),
+        ),
+        "overpressure": logical_not(pressure <= config.max_gauge_pressure_pa),
+    }
+    band = tolerance_m - config.estimate_margin_m
+    on_target = logical_and(
+        _within(estimated - reference, -band, band),
+        _within(fused_height - reference, -config.fused_error_band_m, config.fused_error_band_m),
+    )
+    cleared = reset > 0.5
+    next_latched = [
+        if_then_else(cleared, 0.0, if_then_else(failing[r], 1.0, Expression(latched[r])))
+        for r in REASONS
+    ]
+
+    # Counts of 0/1 terms: a few nodes where a chain of ors of next_latched would repeat every
+    # check (a SymbolicVectorSystem evaluates each expression whole).
+    def count(reasons, flags):
+        return sum(flags[r] for r in reasons)
+
+    newly = {r: if_then_else(failing[r], 1.0, 0.0) for r in REASONS}
+    state_of = {r: Expression(latched[r]) for r in REASONS}
+
+    def acting(action):
+        reasons = [r for r in REASONS if SAFE_ACTIONS[r] == action]
+        return count(reasons, state_of) + count(reasons, newly) > 0.5
+
+    next_mode = if_then_else(
+        cleared, 0.0, if_then_else(acting(VENT), 2.0, if_then_else(acting(HOLD), 1.0, 0.0))
+    )
+    # The held currents follow the commands that pass while nothing was latched and the inlet is
+    # not fully open; the average starts at the first command (a fresh Context's are 0).
+    keep = logical_and(
+        logical_and(count(REASONS, state_of) < 0.5, commands_finite), logical_not(at_full_inlet)
+    )
+    weight = if_then_else(
+        elapsed_s < period_s / 2, 1.0, 1.0 - math.exp(-period_s / config.hold_time_constant_s)
+    )
+    next_held = [
+        if_then_else(keep, held + weight * (command - held), Expression(held))
+        for held, command in ((held_inlet, inlet), (held_outlet, outlet))
+    ]
+    next_inside = if_then_else(on_target, inside_s + period_s, 0.0)
+    # The beam waits for a reset too: a latched reason holds it whatever the estimate says.
+    next_allowed = if_then_else(
+        logical_and(
+            logical_and(count(REASONS, state_of) + count(REASONS, newly) < 0.5, commands_finite),
+            logical_and(on_target, inside_s + period_s >= config.beam_dwell_s),
+        ),
+        1.0,
+        0.0,
+    )
+    # Checked again on this instant's inputs: a reference that steps at a tick holds the beam from
+    # that instant; so does a command that is not finite.
+    beam_hold = if_then_else(
+        logical_and(beam_allowed > 0.5, logical_and(on_target, commands_finite)), 0.0, 1.0
+    )
+    state = [
+        mode,
+        held_inlet,
+        held_outlet,
+        *latched.values(),
+        elapsed_s,
+        full_inlet_s,
+        inside_s,
+        beam_allowed,
+        last_pressure,
+        steady_s,
+        last_reference,
+    ]
+    return add_named_symbolic_system(
+        builder,
+        name,
+        inputs=[
+            ("inlet_command_a", [inlet]),
+            ("outlet_command_a", [outlet]),
+            ("fused_estimated_state", [fused_height, fused_velocity]),
+            ("fusion_health", [tracks_used, disagreement, uncertain]),
+            ("reference_head_height_m", [reference]),
+            ("estimated_head_height_m", [estimated]),
+            ("bladder_gauge_pressure_pa", [pressure]),
+            ("reset", [reset]),
+        ],
+        outputs=[
+            ("inlet_valve_current_a", [inlet_out]),
+            ("outlet_valve_current_a", [outlet_out]),
+            ("reasons", [Expression(latched[r]) for r in REASONS]),
+            ("mode", [Expression(mode)]),
+            ("beam_hold", [beam_hold]),
+        ],
+        state=state,
+        dynamics=[
+            next_mode,
+            *next_held,
+            *next_latched,
+            elapsed_s + period_s,
+            if_then_else(at_full_inlet, full_inlet_s + period_s, 0.0),
+            next_inside,
+            next_allowed,
+            Expression(pressure),
+            if_then_else(reference == last_reference, steady_s + period_s, 0.0),
+            Expression(reference),
+        ],
+        time_period=period_s,
+    )
+
+
+def _commands_finite(inlet, outlet):
+    """Both commands are numbers a valve driver takes."""
+    return logical_and(
+        _within(inlet, -_COMMAND_BOUND_A, _COMMAND_BOUND_A),
+        _within(outlet, -_COMMAND_BOUND_A, _COMMAND_BOUND_A),
+    )
+
+
+def _valve_currents(inlet, outlet, mode, held_inlet, held_outlet, commands_finite, outlet_full_a):
+    """What the valves get: the commands, the held currents, or venting (``MODES``)."""
+    holding = logical_or(mode > 0.5, logical_not(commands_finite))
+    venting = mode > 1.5
+    inlet_out = if_then_else(
+        venting, 0.0, if_then_else(holding, Expression(held_inlet), Expression(inlet))
+    )
+    outlet_out = if_then_else(
+        venting, outlet_full_a, if_then_else(holding, Expression(held_outlet), Expression(outlet))
+    )
+    return inlet_out, outlet_out

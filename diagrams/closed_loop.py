@@ -12,7 +12,7 @@ draw's constants into its Context (``set_plant_parameters``) instead of building
 
 import functools
 from collections.abc import Collection
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, InputPort, OutputPort
@@ -37,7 +37,13 @@ from maskless.errors import ConfigError
 from maskless.systems.control.offset_free_lqg import add_offset_free_lqg
 from maskless.systems.control.paper_lqg import add_paper_lqg, paper_lqg
 from maskless.systems.control.step_reference import add_step_reference
-from maskless.systems.fault_injection import add_camera_faults, add_valve_faults, camera_faults_of
+from maskless.systems.fault_injection import (
+    add_camera_faults,
+    add_controller_faults,
+    add_valve_faults,
+    camera_faults_of,
+    plant_fault_factors,
+)
 from maskless.systems.late_random_sources import LateRandomSources
 from maskless.systems.linear_model import LinearModel
 from maskless.systems.named_symbolic_system import PortMap
@@ -162,6 +168,7 @@ def add_plant(
             p.simulation_step_s,
             name=PNEUMATIC_PLANT_NAME,
             context_parameters=plant_context_parameters,
+            time_factors=plant_fault_factors(config.faults),
         )
         return AddedPlant(
             inlet=plant.inputs["inlet_valve_current_a"],
@@ -469,6 +476,13 @@ def assemble_loop(
     feed the controller, if any); every output is exported and logged; the Diagram is built and
     named.
     """
+    # Missed controller ticks (a fault) deliver the last commands again; from here on, the log
+    # included, the commands are those delivered. Their draws are added after every other source.
+    tick_draws = LateRandomSources()
+    delivered = add_controller_faults(
+        builder, config.faults, drive.inlet, drive.outlet, drive.period_s, tick_draws
+    )
+    drive = replace(drive, inlet=delivered[0], outlet=delivered[1])
     # A stuck valve sees its stuck current; the controller and the log see its command.
     builder.Connect(add_valve_faults(builder, config.faults, "inlet", drive.inlet), plant.inlet)
     builder.Connect(add_valve_faults(builder, config.faults, "outlet", drive.outlet), plant.outlet)
@@ -503,6 +517,7 @@ def assemble_loop(
         record,
     )
     late.add_all(builder)
+    tick_draws.add_all(builder)
     diagram = builder.Build()
     diagram.set_name(diagram_name)
     return ClosedLoop(

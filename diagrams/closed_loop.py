@@ -12,7 +12,7 @@ draw's constants into its Context (``set_plant_parameters``) instead of building
 
 import functools
 from collections.abc import Collection
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, InputPort, OutputPort
@@ -39,7 +39,13 @@ from maskless.systems.control.offset_free_lqg import add_offset_free_lqg
 from maskless.systems.control.paper_lqg import add_paper_lqg, paper_lqg
 from maskless.systems.control.safety_supervisor import SAFETY_STATUS, add_safety_supervisor
 from maskless.systems.control.step_reference import add_step_reference
-from maskless.systems.fault_injection import add_camera_faults, add_valve_faults, camera_faults_of
+from maskless.systems.fault_injection import (
+    add_camera_faults,
+    add_controller_faults,
+    add_valve_faults,
+    camera_faults_of,
+    plant_fault_factors,
+)
 from maskless.systems.late_random_sources import LateRandomSources
 from maskless.systems.linear_model import LinearModel
 from maskless.systems.named_symbolic_system import PortMap
@@ -165,6 +171,7 @@ def add_plant(
             p.simulation_step_s,
             name=PNEUMATIC_PLANT_NAME,
             context_parameters=plant_context_parameters,
+            time_factors=plant_fault_factors(config.faults),
         )
         # The bladder's pressure sensor (a real positioner has one): the gauge pressure state.
         sensor = builder.AddNamedSystem(
@@ -478,6 +485,14 @@ def assemble_loop(
     feed the controller, if any); every output is exported and logged; the Diagram is built and
     named.
     """
+    # Missed controller ticks (a fault) deliver the last commands again; from here on, the log
+    # and the safety supervisor included, the commands are those delivered. Their draws are added
+    # after every other source.
+    tick_draws = LateRandomSources()
+    delivered = add_controller_faults(
+        builder, config.faults, drive.inlet, drive.outlet, drive.period_s, tick_draws
+    )
+    drive = replace(drive, inlet=delivered[0], outlet=delivered[1])
     # The scenario models' RandomSources are added last, so switching one on changes no draw of
     # the others (late_random_sources).
     late = LateRandomSources()
@@ -518,6 +533,7 @@ def assemble_loop(
         builder.Connect(add_valve_faults(builder, config.faults, valve, command), port)
     loggers = export_and_log(builder, config, sensing, logged, drive.period_s, record)
     late.add_all(builder)
+    tick_draws.add_all(builder)
     diagram = builder.Build()
     diagram.set_name(diagram_name)
     return ClosedLoop(

@@ -250,8 +250,9 @@ class Scenario:
         start_lift_m: where the pneumatic plant's head starts, at rest (m of lift).
         camera_image_rate_hz: images per second each rendered camera adds to the recording.
         patient_motion: the patient's own drift, shifts and breathing, added to the head height.
-        faults: name -> a fault injected into a camera or a valve over a time window
-            (``systems/fault_injection.py``); the controller's design never sees them.
+        faults: name -> a fault injected into a camera, a valve, the controller's ticks or the
+            pneumatic plant over a time window (``systems/fault_injection.py``); the
+            controller's design never sees them.
         fault_detection: the estimator's checks of each camera and of the fused estimate.
         safety: the supervisor between the controller and the valves, and its limits.
     """
@@ -428,7 +429,11 @@ def validate_scenario(config: Scenario) -> None:
     )
     IMAGE_RATE_HZ.check(config.camera_image_rate_hz, "camera_image_rate_hz")
     validate_patient_motion(config.patient_motion)
-    validate_faults(config.faults, list(config.cameras))
+    validate_faults(
+        config.faults,
+        {name: camera.frame_rate_hz for name, camera in config.cameras.items()},
+        kind_name(config.plant),
+    )
     validate_fault_detection(config.fault_detection)
     validate_safety(config.safety, config.metrics.tolerance_m)
     for field_name in ("initial_position_std_m", "initial_velocity_std_m_s"):
@@ -543,6 +548,7 @@ _LOOP_SYSTEM_NAMES = {
     "scene_graph",
     "head_pose",
     "patient_motion",
+    "missed_ticks",
     "pneumatic_plant",
     "paper_plant",
     "identified_plant",

@@ -60,6 +60,15 @@ DURATION_S = Limit(
 LATENCY_S = Limit(
     0.0, 1.0, "s", "a depth camera's frame latency is tens of ms, at most ~0.1 s; 1 s is ten times"
 )
+# A latency spike (fault_injection) delays a camera's frames through a delay line of one frame per
+# frame period of the spike, held in the Context; the cap keeps that line short.
+LATENCY_SPIKE_S = Limit(
+    0.0,
+    1.0,
+    "s",
+    "a spike of 1 s is ten times a depth camera's worst frame latency (~0.1 s), and the delay "
+    "line holds one frame per frame period of it (30 at 30 Hz)",
+)
 # The Kinects deliver 30 Hz; every frame is a step of the simulator, so a rate typed in Hz for
 # kHz multiplies the run's time. Below 1 Hz half a frame (the least latency) would exceed the
 # latency's own cap.

@@ -4,6 +4,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from pydrake.symbolic import if_then_else
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
@@ -336,3 +337,54 @@ def test_a_bladder_open_to_the_vacuum_drains_to_it_and_pins_the_head_low(p):
 def test_the_nominal_working_range_is_inside_the_travel(p):
     for current in np.linspace(p.inlet.starting_current_a, p.inlet.saturation_current_a, 5):
         assert not beyond_travel(p, equilibrium_state(p, current, 0.0))
+
+
+def test_time_factors_name_only_constants_that_may_change(p):
+    state = equilibrium_state(p, 0.0, 0.0)
+    for name in ("no_such_constant", "simulation_step_s"):
+        with pytest.raises(ConfigError, match=rf"time_factors \['{name}'\]: expected some of"):
+            make_pneumatic_plant(
+                p, state, p.simulation_step_s, time_factors=lambda t, n=name: {n: t * 0 + 1}
+            )
+
+
+@pytest.mark.parametrize("context_parameters", [(), SWEPT_PARAMETERS])
+def test_a_time_factor_scales_its_constant_from_its_time_on(p, context_parameters):
+    """A halved supply from 1 s on runs as a plant built with half the supply, after 1 s only.
+
+    With the supply in the Context, the factor scales what is written there.
+    """
+    written = dataclasses.replace(p, supply_gauge_pressure_pa=1.5 * p.supply_gauge_pressure_pa)
+    halved = dataclasses.replace(
+        written, supply_gauge_pressure_pa=0.75 * p.supply_gauge_pressure_pa
+    )
+    state = equilibrium_state(p, 0.14, 0.0)
+
+    def factors(time):
+        return {"supply_gauge_pressure_pa": if_then_else(time >= 1.0, 0.5, 1.0)}
+
+    def next_state(plant_parameters, time_s, time_factors=None, write=None):
+        diagram = make_pneumatic_plant(
+            plant_parameters,
+            state,
+            p.simulation_step_s,
+            context_parameters=context_parameters,
+            time_factors=time_factors,
+        )
+        context = diagram.CreateDefaultContext()
+        if write is not None:
+            set_pneumatic_parameters(diagram, context, write, initial_state=state)
+        context.SetTime(time_s)
+        for port, current in (("inlet_valve_current_a", 0.14), ("outlet_valve_current_a", 0.0)):
+            diagram.GetInputPort(port).FixValue(context, [current])
+        plant = diagram.GetSubsystemByName("pneumatic_plant")
+        plant_context = diagram.GetMutableSubsystemContext(plant, context)
+        return plant.EvalUniquePeriodicDiscreteUpdate(plant_context).value()
+
+    # Built with the written constants, or built nominal with them written into the Context.
+    built, write = (p, written) if context_parameters else (written, None)
+    before = next_state(built, 0.5, factors, write)
+    after = next_state(built, 1.5, factors, write)
+    np.testing.assert_allclose(before, next_state(written, 0.5), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(after, next_state(halved, 1.5), rtol=1e-12, atol=1e-12)
+    assert abs(after[GAUGE_PRESSURE] - before[GAUGE_PRESSURE]) > 1e-3  # Pa: it did change

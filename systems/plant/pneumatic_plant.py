@@ -21,7 +21,7 @@ above the table out (m).
 
 import dataclasses
 import math
-from collections.abc import Collection
+from collections.abc import Callable, Collection, Mapping
 from operator import attrgetter
 
 import numpy as np
@@ -428,6 +428,7 @@ def add_pneumatic_plant(
     step_s: float,
     name: str = "pneumatic_plant",
     context_parameters: Collection[str] = SWEPT_PARAMETERS,
+    time_factors: Callable[[Variable], Mapping[str, Expression]] | None = None,
 ) -> PortMap:
     """Adds the pneumatic plant, compiled to a SymbolicVectorSystem, to ``builder``.
 
@@ -453,6 +454,11 @@ def add_pneumatic_plant(
         context_parameters: the fields of ``parameters`` (``PARAMETER_NAMES``) that a Context can
             change; the others are numbers in the expressions. ``STEP_PARAMETERS`` makes every
             constant of the step changeable.
+        time_factors: constants that change during the run (an injected fault: a supply lost
+            for a while). Given the variable that stands for time, it returns the factor, an
+            expression of time, each named constant (``PARAMETER_NAMES``) is multiplied by. None
+            (the default) builds the plant without time: a plant with no such change pays
+            nothing for it. ``fault_injection.plant_fault_factors`` makes one.
 
     Each constant a Context can change costs time at every step (a SymbolicVectorSystem copies a
     table of its variables at each evaluation, and reads a variable where it would read a
@@ -466,23 +472,32 @@ def add_pneumatic_plant(
     them. The ``state`` output gives the state in absolute terms.
 
     Raises:
-        ConfigError: ``context_parameters`` names a field that is not one of ``PARAMETER_NAMES``,
-            or ``simulation_step_s`` (the update period cannot change in a Context).
+        ConfigError: ``context_parameters`` or ``time_factors`` names a field that is not one of
+            ``PARAMETER_NAMES``, or ``simulation_step_s`` (the update period cannot change in a
+            Context, nor in time).
     """
     changeable = [n for n in PARAMETER_NAMES if n != "simulation_step_s"]
-    invalid = sorted(set(context_parameters) - set(changeable))
-    if invalid:
-        raise ConfigError(f"context_parameters {invalid}: expected some of {', '.join(changeable)}")
+    # Time enters the expressions only with factors of it.
+    time = None if time_factors is None else Variable("t")
+    factors = {} if time_factors is None else dict(time_factors(time))
+    for argument, names in (("context_parameters", context_parameters), ("time_factors", factors)):
+        invalid = sorted(set(names) - set(changeable))
+        if invalid:
+            raise ConfigError(f"{argument} {invalid}: expected some of {', '.join(changeable)}")
     origin = np.asarray(initial_state, dtype=float)
     # One variable per entry of the ParameterSource; only those of context parameters enter the
     # expressions, the others name what it holds.
     variables = [Variable(parameter_name) for parameter_name in COMPILED_PARAMETER_NAMES]
+    constants = [
+        Expression(variable) if parameter_name in context_parameters else value
+        for (parameter_name, value), variable in zip(
+            _flat_fields(parameters), variables, strict=False
+        )
+    ]
     p = parameters_from_vector(
         [
-            Expression(variable) if parameter_name in context_parameters else value
-            for (parameter_name, value), variable in zip(
-                _flat_fields(parameters), variables, strict=False
-            )
+            constant * factors[parameter_name] if parameter_name in factors else constant
+            for parameter_name, constant in zip(PARAMETER_NAMES, constants, strict=True)
         ]
     )
     offset = MakeVectorVariable(len(STATE_NAMES), "x")
@@ -500,6 +515,7 @@ def add_pneumatic_plant(
                 semi_implicit_step(state, inlet, outlet, p, step_s), origin, strict=True
             )
         ],
+        time=time,
         time_period=step_s,
         parameters=list(zip(variables, compiled_parameter_vector(parameters, origin), strict=True)),
     )

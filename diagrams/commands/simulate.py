@@ -6,10 +6,14 @@ track-to-track fusion, a controller, two valves, bladder and head) as one Drake 
 holding a run is refused unless --overwrite; a stopped run leaves DIR/run.partial.mcap). By
 default the plant is the first-principles pneumatic robot and the controller the offset-free LQG;
 `--plant paper --controller paper-lqg` reproduces the seed paper's loop.
+
+The safety supervisor (the scenario's `safety` section) sits between the controller and the
+valves; a run that ends with one of its faults latched exits 3 unless --allow-fault.
 """
 
 import argparse
 import json
+import sys
 
 from maskless.diagrams.cli import (
     add_config_argument,
@@ -21,6 +25,11 @@ from maskless.diagrams.cli import (
 )
 from maskless.diagrams.run_summary import format_summary
 from maskless.diagrams.simulation import simulate_to_files
+
+
+# The exit status of a run that ends with a safety fault latched (2 is a refused input; 1 a failed
+# trial of a sweep).
+LATCHED_FAULT_EXIT = 3
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -63,6 +72,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--json", action="store_true", help="print the summary as one JSON object instead of text"
     )
+    parser.add_argument(
+        "--allow-fault",
+        action="store_true",
+        help="exit 0 even when the run ends with a safety fault latched (by default such a run "
+        f"exits {LATCHED_FAULT_EXIT}, so a script notices it)",
+    )
 
 
 def run_command(args: argparse.Namespace) -> int:
@@ -79,4 +94,12 @@ def run_command(args: argparse.Namespace) -> int:
     )
     summary = simulate_to_files(scenario, args.out, overwrite=args.overwrite)
     print(json.dumps(summary) if args.json else format_summary(summary))
+    latched = summary.get("safety", {}).get("latched_at_end")
+    if latched and not args.allow_fault:
+        print(
+            f"maskless simulate: the run ended with a safety fault latched ({', '.join(latched)}); "
+            f"exit {LATCHED_FAULT_EXIT} (--allow-fault to exit 0)",
+            file=sys.stderr,
+        )
+        return LATCHED_FAULT_EXIT
     return 0

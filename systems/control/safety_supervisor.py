@@ -19,7 +19,7 @@ Each reason has its safe action (``SAFE_ACTIONS``):
   (a valve stuck, a lost supply or a leak the loop cannot beat).
 - ``pressure_jump`` (continue): the bladder's pressure moved by more than
   ``max_pressure_step_pa`` in one tick, once the reference has held still for
-  ``pressure_watch_delay_s``. The loop holds the head still then (its corrections move the
+  ``pressure_watch_delay_s`` (and while the valves get the loop's commands). The loop holds the head still then (its corrections move the
   pressure by a few pascals a tick), so the air moved by itself: a valve stuck open or shut, a
   seam opening, the supply lost. The pressure sensor sees it at once, where the cameras see the
   head move a quarter of a second later (their latency and noise). The loop goes on: it is what
@@ -287,8 +287,9 @@ def add_safety_supervisor(
         "inlet_full_too_long": logical_and(
             at_full_inlet, full_inlet_s + period_s >= config.max_full_inlet_s
         ),
+        # Not while the supervisor itself moves the air (holding or venting).
         "pressure_jump": logical_and(
-            steady_s >= config.pressure_watch_delay_s,
+            logical_and(mode < 0.5, steady_s >= config.pressure_watch_delay_s),
             logical_not(
                 _within(
                     pressure - last_pressure,

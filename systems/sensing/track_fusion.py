@@ -96,7 +96,8 @@ def add_track_fusion(
         track_names: one name per local track; the inputs are ``{name}_estimated_state`` (2),
             ``{name}_covariance`` (4, row-major) and ``{name}_health`` (``TRACK_FLAGS``).
         detection: the disagreement and uncertainty bounds.
-        name: the fusion system's name.
+        name: the fusion system's name; its other systems are ``{name}.inverses`` (each pair's
+            inverse, computed once) and ``{name}.health``.
 
     The output is a direct function of the inputs (no state), so it always fuses the tracks as they
     are at that instant. ``health`` is ``FUSION_HEALTH``: the tracks used, then 1 where a flag is

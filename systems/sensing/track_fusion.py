@@ -12,6 +12,7 @@ every track flagged, their fusion's covariance is that large too, and says so.
 """
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.symbolic import Expression, MakeVectorVariable, Variable, if_then_else, logical_and
@@ -35,7 +36,9 @@ def inverse_2x2(M):
     return np.array([[M[1, 1], -M[0, 1]], [-M[1, 0], M[0, 0]]]) / determinant
 
 
-def fuse_tracks(states: Sequence[np.ndarray], covariances: Sequence[np.ndarray]):
+def fuse_tracks(
+    states: Sequence[np.ndarray], covariances: Sequence[np.ndarray], inverse=inverse_2x2
+):
     """Eq. 10 on 2-state tracks.
 
     Computed pairwise with (P₁⁻¹ + P₂⁻¹)⁻¹ = P₁ (P₁ + P₂)⁻¹ P₂, which equals Eq. 10 exactly but
@@ -45,6 +48,8 @@ def fuse_tracks(states: Sequence[np.ndarray], covariances: Sequence[np.ndarray])
     Args:
         states: each track's x̂_s (2,).
         covariances: each track's P_s (2, 2).
+        inverse: inverts each pair's sum (``inverse_2x2``; the fusion system passes one that
+            hands back variables standing for the inverses it computes beforehand).
 
     Returns:
         (x_F, P_F).
@@ -56,7 +61,7 @@ def fuse_tracks(states: Sequence[np.ndarray], covariances: Sequence[np.ndarray])
         )
     fused_state, fused_covariance = states[0], covariances[0]
     for x, P in zip(states[1:], covariances[1:], strict=True):
-        inverse_sum = inverse_2x2(fused_covariance + P)
+        inverse_sum = inverse(fused_covariance + P)
         fused_state = P @ inverse_sum @ fused_state + fused_covariance @ inverse_sum @ x
         fused_covariance = fused_covariance @ inverse_sum @ P
     return fused_state, fused_covariance
@@ -91,7 +96,8 @@ def add_track_fusion(
         track_names: one name per local track; the inputs are ``{name}_estimated_state`` (2),
             ``{name}_covariance`` (4, row-major) and ``{name}_health`` (``TRACK_FLAGS``).
         detection: the disagreement and uncertainty bounds.
-        name: the fusion system's name.
+        name: the fusion system's name; its other systems are ``{name}.inverses`` (each pair's
+            inverse, computed once) and ``{name}.health``.
 
     The output is a direct function of the inputs (no state), so it always fuses the tracks as they
     are at that instant. ``health`` is ``FUSION_HEALTH``: the tracks used, then 1 where a flag is
@@ -114,21 +120,60 @@ def add_track_fusion(
         # Any flag set inflates the track out of the fusion (a count of 0/1 flags).
         flag_counts.append(sum(flags))
         covariances.append(raw_covariances[-1] + flag_counts[-1] * EXCLUDED_VARIANCE * np.eye(2))
-    fused_state, fused_covariance = fuse_tracks(states, covariances)
     # With no flag set (nearly always) only Eq. 10 on the tracks as they are is evaluated: an
     # if-then-else evaluates the branch it takes, and the controller reads this every tick.
     all_healthy = sum(flag_counts) < 0.5
-    plain_state, plain_covariance = fuse_tracks(states, raw_covariances)
-    chosen_state = [if_then_else(all_healthy, a, b) for a, b in _pairs(plain_state, fused_state)]
-    chosen_covariance = [
-        if_then_else(all_healthy, a, b) for a, b in _pairs(plain_covariance, fused_covariance)
-    ]
+    # A symbolic system re-evaluates every copy of a sub-expression, and each pair's inverse
+    # (P₁ + P₂)⁻¹ appears in every entry of the fused state and covariance (eight copies of its
+    # determinant in one entry of the state). So a first system, ``{name}.inverses``, computes
+    # each inverse once, from the same expressions (so to the same bits), and passes the tracks
+    # on; the fusion reads the inverses as variables, with the arithmetic around them unchanged
+    # (tests/test_track_fusion.py compares the expressions node by node).
+    inverse_variables = list(MakeVectorVariable(4 * (len(track_names) - 1), "inverse"))
+    plain, flagged = (
+        fusion_expressions(states, chosen, inverse_variables)
+        for chosen in (raw_covariances, covariances)
+    )
+    track_variables = [v for _, variables in inputs for v in variables]
+    healthy = Variable("all_tracks_healthy")
+    inverses = add_named_symbolic_system(
+        builder,
+        f"{name}.inverses",
+        inputs=inputs,
+        outputs=[
+            (
+                "fusion_input",
+                [
+                    *track_variables,
+                    *(
+                        if_then_else(all_healthy, a, b)
+                        for a, b in zip(plain.inverses, flagged.inverses, strict=True)
+                    ),
+                    if_then_else(all_healthy, 1.0, 0.0),
+                ],
+            )
+        ],
+    )
     fusion = add_named_symbolic_system(
         builder,
         name,
-        inputs=inputs,
-        outputs=[("estimated_state", chosen_state), ("covariance", chosen_covariance)],
+        inputs=[("fusion_input", [*track_variables, *inverse_variables, healthy])],
+        outputs=[
+            (
+                "estimated_state",
+                [if_then_else(healthy > 0.5, a, b) for a, b in _pairs(plain.state, flagged.state)],
+            ),
+            (
+                "covariance",
+                [
+                    if_then_else(healthy > 0.5, a, b)
+                    for a, b in _pairs(plain.covariance, flagged.covariance)
+                ],
+            ),
+        ],
     )
+    builder.Connect(inverses.outputs["fusion_input"], fusion.inputs.pop("fusion_input"))
+    fusion.inputs = inverses.inputs
     # The health is a system of its own on the same input vector: only its readers (the log, a
     # supervisor) pay for it, not the controller's every reading of the estimate.
     # It reads the fused variance from the fusion's output rather than fusing again.
@@ -153,11 +198,46 @@ def add_track_fusion(
         ],
     )
     builder.Connect(
-        builder.GetSubsystemByName(f"{name}.inputs").get_output_port(), health.inputs["tracks"]
+        builder.GetSubsystemByName(f"{name}.inverses.inputs").get_output_port(),
+        health.inputs["tracks"],
     )
     builder.Connect(fusion.outputs["covariance"], health.inputs["fused_covariance"])
     fusion.outputs["health"] = health.outputs["health"]
     return fusion
+
+
+@dataclass
+class FusionExpressions:
+    """Eq. 10 with each pair's inverse (P₁ + P₂)⁻¹ as a variable (``fusion_expressions``).
+
+    Attributes:
+        state: x_F (2,) in the tracks' and the inverses' variables.
+        covariance: P_F (2, 2), likewise.
+        inverses: the entries of each pair's inverse in the tracks' variables, in the order of
+            the variables given.
+    """
+
+    state: np.ndarray
+    covariance: np.ndarray
+    inverses: list[Expression]
+
+
+@building_expressions
+def fusion_expressions(states, covariances, variables: Sequence[Variable]) -> FusionExpressions:
+    """``fuse_tracks`` on symbolic tracks, each inverse it takes replaced by variables.
+
+    Args:
+        states: each track's x̂_s (2,), symbolic.
+        covariances: each track's P_s (2, 2), symbolic.
+        variables: 4 per pair (one fewer pair than tracks), each inverse's entries row-major.
+    """
+    inverses = []
+    # The inverses in the tracks' variables, as fuse_tracks builds them (a later pair's sum
+    # holds the earlier fusion).
+    fuse_tracks(states, covariances, lambda M: inverses.append(inverse_2x2(M)) or inverses[-1])
+    stand_ins = iter(np.array(list(variables), dtype=object).reshape(-1, 2, 2))
+    state, covariance = fuse_tracks(states, covariances, lambda M: next(stand_ins))
+    return FusionExpressions(state, covariance, [e for M in inverses for e in M.ravel()])
 
 
 def _pairs(first: np.ndarray, second: np.ndarray):

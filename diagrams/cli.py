@@ -56,7 +56,8 @@ def add_config_argument(parser: argparse.ArgumentParser) -> None:
         type=Path,
         default=None,
         metavar="FILE.yaml",
-        help="YAML overriding the shipped defaults (assets/simulation.yaml)",
+        help="YAML overriding the shipped defaults (assets/simulation.yaml); a shipped fault "
+        "example is found by its name, e.g. faults/both-cameras-lost.yaml",
     )
 
 

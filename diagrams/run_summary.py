@@ -12,6 +12,7 @@ from maskless.analysis.metrics import estimate_error_std_m, tracking_metrics
 from maskless.analysis.safety_figures import SafetyLog, safety_figures, time_to_safe_state_s
 from maskless.systems.control.offset_free_lqg import closed_loop_poles as offset_free_poles
 from maskless.systems.control.paper_lqg import closed_loop_poles
+from maskless.systems.control.safety_supervisor import REASONS
 from maskless.systems.sensing.fault_detection import FUSION_HEALTH, TRACK_FLAGS
 from maskless.systems.units import a_to_ma, m_to_mm
 
@@ -131,6 +132,14 @@ def _detection(config, loop, s) -> dict:
         # A camera fault may be caught at its camera or at the fusion; a valve fault only there.
         watched = {f"{fault.target}.{k}": v for k, v in camera_flags.get(fault.target, {}).items()}
         watched.update({f"fusion.{k}": v for k, v in fused.items()})
+        # The supervisor's own checks (the bladder's pressure) detect what the cameras cannot.
+        if "safety.reasons" in s:
+            watched.update(
+                {
+                    f"safety.{r}": row
+                    for r, row in zip(REASONS, s["safety.reasons"].values, strict=True)
+                }
+            )
         flag, latency = detection_latency_s(fusion.times_s, watched, fault.start_s)
         faults[fault_name] = {
             "kind": fault.kind,

@@ -301,6 +301,21 @@ def shipped_presets(population: bool = False) -> dict[str, Path]:
     }
 
 
+def shipped_fault_examples() -> dict[str, Path]:
+    """The shipped fault examples by their name under assets/ (``faults/NAME.yaml``)."""
+    folder = asset_path("faults/both-cameras-lost.yaml").parent
+    return {f"faults/{path.name}": path for path in sorted(folder.glob("*.yaml"))}
+
+
+def given_or_shipped(path: str | Path) -> Path:
+    """``path``, or the shipped example it names (``faults/both-cameras-lost.yaml``) when there is
+    no such file here: a user who installed the package has the examples but not the folder."""
+    path = Path(path)
+    if path.exists():
+        return path
+    return shipped_fault_examples().get(path.as_posix(), path)
+
+
 def scenario_preset_names() -> list[str]:
     """The shipped scenario presets (``--preset NAME``), such as ``paper_camera_noise``."""
     return list(shipped_presets())
@@ -362,6 +377,7 @@ def scenario_with_overrides(
     """
     scenario = with_presets(default_scenario(), presets)
     if path is not None:
+        path = given_or_shipped(path)
         scenario = load_config(Scenario, path, defaults=scenario)
     given = {name: value for name, value in overrides.items() if value is not None}
     known = set(Scenario.__dataclass_fields__)

@@ -9,10 +9,12 @@ from mcap.reader import make_reader
 
 from maskless.diagrams.closed_loop import build_closed_loop, set_plant_parameters
 from maskless.diagrams.controller_design import NominalPneumatic
+from maskless.diagrams.run_recording import signal_channels
 from maskless.diagrams.scenario import controller_from_shorthand, plant_from_shorthand
 from maskless.diagrams.simulation import simulate, simulate_loop
 from maskless.errors import ConfigError
 from maskless.recording import read_recording, write_recording
+from maskless.systems.fault_injection import FaultConfig
 from maskless.systems.plant.pneumatic_physics import LIFT
 from maskless.systems.plant.pneumatic_plant import SWEPT_PARAMETERS, equilibrium_state
 
@@ -25,6 +27,8 @@ TOPICS = {
     "/sensors/kinect_v2/measurement",
     "/filters/kinect_v1/estimate",
     "/filters/kinect_v2/estimate",
+    "/safety/status",
+    "/plant/bladder_pressure",
 }
 
 
@@ -211,3 +215,50 @@ def test_the_patients_motion_is_in_the_head_height_the_cameras_see_and_the_log_h
     config.patient_motion.breathing_amplitude_m = 0.0
     moving = simulate(config).signals["head_height_m"]
     np.testing.assert_allclose(moving.values[0] - still.values[0], 0.01 * moving.times_s, atol=5e-5)
+
+
+def test_the_supervisor_passes_a_healthy_loop_unchanged(config):
+    """The loop with its supervisor moves the head exactly as the loop without one."""
+    unsupervised = dataclasses.replace(
+        config, safety=dataclasses.replace(config.safety, enabled=False), duration_s=30.0
+    )
+    bare = simulate(unsupervised).signals
+    supervised = simulate(dataclasses.replace(config, duration_s=30.0)).signals
+    assert "safety.beam_hold" not in bare
+    for name in ("head_height_m", "inlet_valve_current_a", "fusion.estimated_state"):
+        np.testing.assert_array_equal(supervised[name].values, bare[name].values, err_msg=name)
+    np.testing.assert_array_equal(
+        supervised["safety.inlet_valve_current_a"].values, bare["inlet_valve_current_a"].values
+    )
+    assert not supervised["safety.reasons"].values.any()
+
+
+def test_both_cameras_lost_reach_the_safe_state_within_half_a_second_and_hold_the_head(
+    config, tmp_path
+):
+    """The issue's target: the safe state within 0.5 s, the head within 2 mm of where it was."""
+    start_s = 20.0
+    lost = {
+        name: FaultConfig("camera_dead", name, start_s, 100.0)
+        for name in ("kinect_v1", "kinect_v2")
+    }
+    run = simulate(dataclasses.replace(config, duration_s=60.0, faults=lost))
+    safety = run.metrics["safety"]
+    first = safety["events"][0]
+    assert first["action"] == "hold" and first["first_s"] - start_s <= 0.5
+    s = run.signals
+    times, head = s["head_height_m"].times_s, s["head_height_m"].values[0]
+    at_start = head[np.searchsorted(times, start_s)]
+    assert np.max(np.abs(head[times >= start_s] - at_start)) <= 0.002
+    beam = s["safety.beam_hold"]
+    assert np.all(beam.values[0][beam.times_s >= first["first_s"]] == 1.0)
+    assert safety["beam_on_while_off_target_s"] == 0.0
+    # The recording says so at the same tick.
+    path = tmp_path / "lost.mcap"
+    write_recording(path, signal_channels(run.signals, run.closed_loop.sensor_names))
+    times_ns, states = read_recording(path).topic_arrays("/safety/status", "state")
+    assert states[0] == "normal"
+    first_holding = times_ns[np.flatnonzero(states == "holding")[0]]
+    assert first_holding == round(first["first_s"] * 1e9)
+    _, reasons = read_recording(path).topic_arrays("/safety/status", "reasons")
+    assert first["reason"] in reasons[-1].split(",")

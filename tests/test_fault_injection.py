@@ -220,13 +220,14 @@ def test_a_plant_fault_that_starts_after_the_run_changes_nothing_but_rounding():
     }
     faulted = simulate(load_scenario(duration_s=12.0, faults=late))
     for name, signal in plain.signals.items():
+        # Rounding: 1e-15 m on a height, 1e-13 of the value on a pressure of ~1600 Pa.
         np.testing.assert_allclose(
-            faulted.signals[name].values, signal.values, rtol=0, atol=1e-15, err_msg=name
+            faulted.signals[name].values, signal.values, rtol=1e-13, atol=1e-15, err_msg=name
         )
 
 
 def test_both_cameras_dead_leave_the_loop_blind_and_stuck_valves_move_the_head():
-    """Today's loop has no detection (issue 13): what the faults do, measured."""
+    """What the faults do to the plant and the estimate, whatever the supervisor makes of it."""
     dead = {
         name: FaultConfig("camera_dead", name, 20.0, 100.0) for name in ("kinect_v1", "kinect_v2")
     }

@@ -207,3 +207,17 @@ def test_a_model_whose_input_holds_no_height_is_refused():
 def test_a_model_with_feedthrough_is_refused():
     with pytest.raises(ModelError, match=r"D = 0.5: .* without feedthrough"):
         design_offset_free_lqg(scalar_model(d=0.5), WEIGHTS)
+
+
+def test_the_estimated_height_starts_at_rest_and_follows_the_plant(design):
+    _, simulator, controller, _, sink = closed_loop(
+        design, wide_allocation(-10, 10), 0.05, Y0 + 0.03
+    )
+    context = simulator.get_mutable_context()
+    estimate = controller.GetOutputPort("estimated_head_height_m")
+    assert estimate.Eval(controller.GetMyContextFromRoot(context))[0] == pytest.approx(Y0)
+    simulator.AdvanceTo(30.0)
+    y = sink.FindLog(context).data()[0]
+    assert estimate.Eval(controller.GetMyContextFromRoot(context))[0] == pytest.approx(
+        y[-1], abs=1e-9
+    )

@@ -86,7 +86,7 @@ def test_controller_ports_and_equations(model, design, applied, passed):
     assert controller.get_name() == "paper_lqg"
     assert port_layout(controller) == (
         {"fused_estimated_state": 2, "reference_head_height_m": 1, "applied_current_a": 1},
-        {"valve_current_a": 1},
+        {"valve_current_a": 1, "estimated_head_height_m": 1},
     )
     context = controller.CreateDefaultContext()
     x_hat = np.array([0.001, 0.0015])
@@ -102,6 +102,10 @@ def test_controller_ports_and_equations(model, design, applied, passed):
     )
     assert controller.GetOutputPort("valve_current_a").Eval(context)[0] == pytest.approx(
         u_expected[0], rel=1e-12
+    )
+    # The height x_hat stands for: its output is the distance below the camera, less d_op.
+    assert controller.GetOutputPort("estimated_head_height_m").Eval(context)[0] == pytest.approx(
+        CAMERA_M - model.operating_output - (model.C @ x_hat)[0], rel=1e-12
     )
     # Eq. 34: x(k+1) = A x - L (C x - y) + B u, y and u as deviations in the model's coordinates
     # (distance below the camera), u the current the valve passes (no flow below 60 mA, clipped at

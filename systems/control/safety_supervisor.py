@@ -4,8 +4,8 @@ Each controller tick it checks what the loop knows (never the simulated truth) a
 reason when a check fails; a latched reason stays until the ``reset`` input is raised at a tick.
 Each reason has its safe action (``SAFE_ACTIONS``):
 
-- ``camera_excluded`` (continue): the fusion uses fewer cameras than it has (a camera's own
-  checks flagged it, ``fault_detection``). The loop goes on with the others (degraded mode):
+- ``camera_excluded`` (continue): the fusion uses fewer cameras than it has, but some (a camera's
+  own checks flagged it, ``fault_detection``). The loop goes on with the others (degraded mode):
   holding the air would be no safer than a loop that still sees the head.
 - ``no_camera`` (hold): the fusion uses no camera.
 - ``cameras_disagree`` (hold): two cameras the fusion uses disagree, and nothing says which one
@@ -71,6 +71,7 @@ from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
     building_expressions,
+    diagram_form,
 )
 
 CONTINUE, HOLD, VENT = "continue", "hold", "vent"
@@ -272,10 +273,17 @@ def add_safety_supervisor(
         inlet, outlet, mode, held_inlet, held_outlet, commands_finite, outlet_saturation_a
     )
     at_full_inlet = inlet_out >= inlet_saturation_a
-    watching = elapsed_s >= config.start_grace_s
+
+    def reached(duration_s, limit_s):
+        # Half a tick of slack: durations are sums of ticks, and 10 x 0.1 is below 1.0.
+        return duration_s > limit_s - period_s / 2
+
+    watching = reached(elapsed_s, config.start_grace_s)
     seen = tracks_used > 0.5
     failing = {
-        "camera_excluded": logical_and(watching, tracks_used < camera_count - 0.5),
+        "camera_excluded": logical_and(
+            logical_and(watching, seen), tracks_used < camera_count - 0.5
+        ),
         "no_camera": logical_and(watching, logical_not(seen)),
         "cameras_disagree": logical_and(watching, disagreement > 0.5),
         "estimate_uncertain": logical_and(watching, uncertain > 0.5),
@@ -285,11 +293,11 @@ def add_safety_supervisor(
         ),
         "non_finite_command": logical_not(commands_finite),
         "inlet_full_too_long": logical_and(
-            at_full_inlet, full_inlet_s + period_s >= config.max_full_inlet_s
+            at_full_inlet, reached(full_inlet_s + period_s, config.max_full_inlet_s)
         ),
         # Not while the supervisor itself moves the air (holding or venting).
         "pressure_jump": logical_and(
-            logical_and(mode < 0.5, steady_s >= config.pressure_watch_delay_s),
+            logical_and(mode < 0.5, reached(steady_s, config.pressure_watch_delay_s)),
             logical_not(
                 _within(
                     pressure - last_pressure,
@@ -327,7 +335,8 @@ def add_safety_supervisor(
         cleared, 0.0, if_then_else(acting(VENT), 2.0, if_then_else(acting(HOLD), 1.0, 0.0))
     )
     # The held currents follow the commands that pass while nothing was latched and the inlet is
-    # not fully open; the average starts at the first command (a fresh Context's are 0).
+    # not fully open (the tick that first sees a fault still counts: its command was computed a
+    # tick before); the average starts at the first command (a fresh Context's are 0).
     keep = logical_and(
         logical_and(count(REASONS, state_of) < 0.5, commands_finite), logical_not(at_full_inlet)
     )
@@ -343,7 +352,7 @@ def add_safety_supervisor(
     next_allowed = if_then_else(
         logical_and(
             logical_and(count(REASONS, state_of) + count(REASONS, newly) < 0.5, commands_finite),
-            logical_and(on_target, inside_s + period_s >= config.beam_dwell_s),
+            logical_and(on_target, reached(inside_s + period_s, config.beam_dwell_s)),
         ),
         1.0,
         0.0,
@@ -401,6 +410,9 @@ def add_safety_supervisor(
         ],
         time_period=period_s,
     )
+
+
+make_safety_supervisor = diagram_form(add_safety_supervisor)
 
 
 def _commands_finite(inlet, outlet):

@@ -1,0 +1,274 @@
+"""The safety supervisor, tick by tick: each check latches its reason and takes its safe action."""
+
+import math
+
+import numpy as np
+import pytest
+
+from maskless.errors import ConfigError
+from maskless.systems.control.safety_supervisor import (
+    MODES,
+    REASONS,
+    SAFE_ACTIONS,
+    SafetyConfig,
+    make_safety_supervisor,
+    safety_states,
+    validate_safety,
+)
+from tests.system_harness import port_layout
+
+PERIOD_S = 0.1
+LOW_M, HIGH_M = 0.200, 0.230
+TOLERANCE_M = 0.001
+INLET_FULL_A, OUTLET_FULL_A = 0.165, 0.170
+CONFIG = SafetyConfig(
+    enabled=True,
+    start_grace_s=0.25,
+    travel_margin_m=0.005,
+    max_gauge_pressure_pa=15_000.0,
+    max_full_inlet_s=1.0,
+    max_pressure_step_pa=40.0,
+    pressure_watch_delay_s=0.5,
+    estimate_margin_m=0.0003,
+    fused_error_band_m=0.0012,
+    beam_dwell_s=0.3,
+    hold_time_constant_s=2.0,
+)
+# A healthy loop at rest on its reference, two cameras used.
+HEALTHY = {
+    "inlet_command_a": 0.100,
+    "outlet_command_a": 0.010,
+    "fused_estimated_state": [0.215, 0.0],
+    "fusion_health": [2.0, 0.0, 0.0],
+    "reference_head_height_m": 0.215,
+    "estimated_head_height_m": 0.215,
+    "bladder_gauge_pressure_pa": 3000.0,
+    "reset": 0.0,
+}
+
+
+class Supervisor:
+    """The supervisor built alone, stepped one tick at a time with the inputs given."""
+
+    def __init__(self, config=CONFIG):
+        self.system = make_safety_supervisor(
+            config,
+            period_s=PERIOD_S,
+            camera_count=2,
+            head_height_limits_m=(LOW_M, HIGH_M),
+            tolerance_m=TOLERANCE_M,
+            inlet_saturation_a=INLET_FULL_A,
+            outlet_saturation_a=OUTLET_FULL_A,
+        )
+        self.context = self.system.CreateDefaultContext()
+        self.set(**HEALTHY)
+
+    def set(self, **inputs):
+        for name, value in inputs.items():
+            self.system.GetInputPort(name).FixValue(self.context, np.atleast_1d(value))
+
+    def tick(self, ticks=1, **inputs):
+        self.set(**inputs)
+        for _ in range(ticks):
+            update = self.system.EvalUniquePeriodicDiscreteUpdate(self.context)
+            self.context.get_mutable_discrete_state().SetFrom(update)
+            self.context.SetTime(self.context.get_time() + PERIOD_S)
+
+    def out(self, name):
+        return self.system.GetOutputPort(name).Eval(self.context)
+
+    def latched(self):
+        return {r for r, on in zip(REASONS, self.out("reasons"), strict=True) if on > 0.5}
+
+    def mode(self):
+        return MODES[int(self.out("mode")[0])]
+
+    def valves(self):
+        return self.out("inlet_valve_current_a")[0], self.out("outlet_valve_current_a")[0]
+
+
+def test_ports():
+    inputs, outputs = port_layout(Supervisor().system)
+    assert inputs == {
+        "inlet_command_a": 1,
+        "outlet_command_a": 1,
+        "fused_estimated_state": 2,
+        "fusion_health": 3,
+        "reference_head_height_m": 1,
+        "estimated_head_height_m": 1,
+        "bladder_gauge_pressure_pa": 1,
+        "reset": 1,
+    }
+    assert outputs == {
+        "inlet_valve_current_a": 1,
+        "outlet_valve_current_a": 1,
+        "reasons": len(REASONS),
+        "mode": 1,
+        "beam_hold": 1,
+    }
+
+
+def test_a_healthy_loop_passes_its_commands_bit_for_bit_and_latches_nothing():
+    s = Supervisor()
+    for inlet in (0.1, 0.123456789, 0.0, INLET_FULL_A - 1e-9):
+        s.tick(inlet_command_a=inlet)
+        assert s.valves() == (inlet, HEALTHY["outlet_command_a"])
+    assert s.latched() == set() and s.mode() == "pass"
+
+
+def test_the_held_currents_are_an_exponential_average_of_the_healthy_commands():
+    s = Supervisor()
+    commands = [0.10, 0.12, 0.08, 0.11, 0.09]
+    held = commands[0]  # the average starts at the first command
+    s.tick(inlet_command_a=commands[0])
+    weight = 1 - math.exp(-PERIOD_S / CONFIG.hold_time_constant_s)
+    for command in commands[1:]:
+        s.tick(inlet_command_a=command)
+        held += weight * (command - held)
+    # No camera: hold. The tick that sees it still averages its command, computed a tick before.
+    s.tick(fusion_health=[0.0, 0.0, 0.0])
+    held += weight * (commands[-1] - held)
+    assert s.mode() == "hold"
+    assert s.valves()[0] == pytest.approx(held, rel=1e-12)
+    assert s.valves()[1] == pytest.approx(HEALTHY["outlet_command_a"], rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "inputs, reason",
+    [
+        ({"fusion_health": [1.0, 0.0, 0.0]}, "camera_excluded"),
+        ({"fusion_health": [0.0, 0.0, 0.0]}, "no_camera"),
+        ({"fusion_health": [2.0, 1.0, 0.0]}, "cameras_disagree"),
+        ({"fusion_health": [2.0, 0.0, 1.0]}, "estimate_uncertain"),
+        ({"fused_estimated_state": [HIGH_M + 0.0051, 0.0]}, "outside_travel"),
+        ({"fused_estimated_state": [LOW_M - 0.0051, 0.0]}, "outside_travel"),
+        ({"fused_estimated_state": [math.nan, 0.0]}, "outside_travel"),
+        ({"outlet_command_a": math.inf}, "non_finite_command"),
+        ({"bladder_gauge_pressure_pa": 15_000.1}, "overpressure"),
+        ({"bladder_gauge_pressure_pa": math.nan}, "overpressure"),
+    ],
+)
+def test_each_check_latches_its_reason_and_takes_its_action_until_reset(inputs, reason):
+    s = Supervisor()
+    s.tick(3)  # past the start grace
+    s.tick(**inputs)
+    assert s.latched() == {reason}
+    expected = {"continue": "pass", "hold": "hold", "vent": "vent"}[SAFE_ACTIONS[reason]]
+    assert s.mode() == expected
+    assert s.out("beam_hold")[0] == 1.0
+    s.tick(**HEALTHY)  # the cause is gone: the reason stays latched
+    assert s.latched() == {reason} and s.out("beam_hold")[0] == 1.0
+    s.tick(reset=1.0)
+    s.tick(reset=0.0)
+    assert s.latched() == set() and s.mode() == "pass"
+
+
+def test_just_inside_each_limit_nothing_latches():
+    s = Supervisor()
+    s.tick(3)
+    s.tick(
+        fused_estimated_state=[HIGH_M + 0.0049, 0.0],
+        bladder_gauge_pressure_pa=14_999.0,
+        outlet_command_a=999.0,  # a big number is still a number
+    )
+    assert s.latched() == set()
+
+
+def test_the_estimate_checks_wait_for_the_start_grace():
+    s = Supervisor()
+    s.tick(2, fusion_health=[0.0, 0.0, 1.0])  # t = 0, 0.1: within the 0.25 s grace
+    assert s.latched() == set()
+    s.tick(2)  # t = 0.2, 0.3
+    assert s.latched() == {"no_camera", "estimate_uncertain"}
+
+
+def test_a_non_finite_command_is_replaced_at_once_by_the_held_currents():
+    s = Supervisor()
+    s.tick(3)
+    s.set(inlet_command_a=math.nan)  # no tick yet: the same instant
+    inlet, outlet = s.valves()
+    assert inlet == pytest.approx(HEALTHY["inlet_command_a"]) and math.isfinite(inlet)
+    assert outlet == pytest.approx(HEALTHY["outlet_command_a"])
+    assert s.out("beam_hold")[0] == 1.0
+
+
+def test_overpressure_vents_the_bladder():
+    s = Supervisor()
+    s.tick(3)
+    s.tick(bladder_gauge_pressure_pa=20_000.0)
+    assert s.mode() == "vent" and s.valves() == (0.0, OUTLET_FULL_A)
+
+
+def test_the_inlet_fully_open_for_too_long_latches_at_its_limit():
+    s = Supervisor()
+    ticks = round(CONFIG.max_full_inlet_s / PERIOD_S)
+    s.tick(ticks - 1, inlet_command_a=INLET_FULL_A)
+    assert s.latched() == set()
+    s.tick()
+    assert s.latched() == {"inlet_full_too_long"}
+
+
+def test_a_pressure_jump_in_a_still_loop_latches_and_the_loop_goes_on():
+    s = Supervisor()
+    still = round(CONFIG.pressure_watch_delay_s / PERIOD_S) + 1
+    s.tick(still)
+    s.tick(bladder_gauge_pressure_pa=3000.0 + 39.0)  # within the step limit
+    assert s.latched() == set()
+    s.tick(bladder_gauge_pressure_pa=3039.0 + 41.0)
+    assert s.latched() == {"pressure_jump"} and s.mode() == "pass"
+    assert s.valves() == (HEALTHY["inlet_command_a"], HEALTHY["outlet_command_a"])
+
+
+def test_a_pressure_step_right_after_the_reference_moved_is_the_loop_at_work():
+    s = Supervisor()
+    s.tick(10)
+    s.tick(reference_head_height_m=0.220)
+    s.tick(bladder_gauge_pressure_pa=3500.0)
+    assert "pressure_jump" not in s.latched()
+
+
+def test_the_beam_waits_for_the_dwell_and_drops_the_instant_the_error_grows():
+    s = Supervisor()
+    assert s.out("beam_hold")[0] == 1.0  # a fresh supervisor holds the beam
+    dwell_ticks = math.ceil(CONFIG.beam_dwell_s / PERIOD_S - 1e-9)
+    s.tick(dwell_ticks - 1)
+    assert s.out("beam_hold")[0] == 1.0
+    s.tick()
+    assert s.out("beam_hold")[0] == 0.0
+    band = TOLERANCE_M - CONFIG.estimate_margin_m
+    s.set(estimated_head_height_m=0.215 + band * 1.01)  # no tick: the output sees it at once
+    assert s.out("beam_hold")[0] == 1.0
+    s.set(estimated_head_height_m=0.215, fused_estimated_state=[0.215 - 0.00121, 0.0])
+    assert s.out("beam_hold")[0] == 1.0
+    s.set(fused_estimated_state=[0.215 - 0.00119, 0.0])
+    assert s.out("beam_hold")[0] == 0.0
+
+
+def test_safety_states_names_the_state_and_the_reasons():
+    reasons = np.zeros((len(REASONS), 4))
+    reasons[REASONS.index("camera_excluded"), 1:] = 1
+    reasons[REASONS.index("no_camera"), 2:] = 1
+    mode = np.array([0.0, 0.0, 1.0, 2.0])
+    states, names = safety_states(mode, reasons)
+    assert list(states) == ["normal", "degraded", "holding", "venting"]
+    assert list(names) == ["", "camera_excluded", "camera_excluded,no_camera"] + [
+        "camera_excluded,no_camera"
+    ]
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("max_gauge_pressure_pa", 0.0),
+        ("max_full_inlet_s", math.inf),
+        ("estimate_margin_m", TOLERANCE_M),
+        ("beam_dwell_s", -1.0),
+        ("fused_error_band_m", math.nan),
+        ("pressure_watch_delay_s", -0.1),
+    ],
+)
+def test_a_limit_out_of_range_is_refused_by_name(field, value):
+    import dataclasses
+
+    with pytest.raises(ConfigError, match=f"safety.{field}"):
+        validate_safety(dataclasses.replace(CONFIG, **{field: value}), TOLERANCE_M)

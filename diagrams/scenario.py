@@ -308,8 +308,11 @@ def shipped_fault_examples() -> dict[str, Path]:
 
 
 def given_or_shipped(path: str | Path) -> Path:
-    """``path``, or the shipped example it names (``faults/both-cameras-lost.yaml``) when there is
-    no such file here: a user who installed the package has the examples but not the folder."""
+    """``path``, or the shipped example it names when there is no such file here.
+
+    A user who installed the package has the examples (``faults/both-cameras-lost.yaml``) but
+    not the folder.
+    """
     path = Path(path)
     if path.exists():
         return path

@@ -26,7 +26,6 @@ from maskless.diagrams.cli import (
 from maskless.diagrams.run_summary import format_summary
 from maskless.diagrams.simulation import simulate_to_files
 
-
 # The exit status of a run that ends with a safety fault latched (2 is a refused input; 1 a failed
 # trial of a sweep).
 LATCHED_FAULT_EXIT = 3

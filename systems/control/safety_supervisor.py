@@ -19,12 +19,13 @@ Each reason has its safe action (``SAFE_ACTIONS``):
   (a valve stuck, a lost supply or a leak the loop cannot beat).
 - ``pressure_jump`` (continue): the bladder's pressure moved by more than
   ``max_pressure_step_pa`` in one tick, once the reference has held still for
-  ``pressure_watch_delay_s`` (and while the valves get the loop's commands). The loop holds the head still then (its corrections move the
-  pressure by a few pascals a tick), so the air moved by itself: a valve stuck open or shut, a
-  seam opening, the supply lost. The pressure sensor sees it at once, where the cameras see the
-  head move a quarter of a second later (their latency and noise). The loop goes on: it is what
-  can still fight a stuck inlet with the outlet (held currents could not: measured, the head
-  rose 6.2 mm holding and 4.3 mm with the loop on, assets/faults/inlet-stuck-open.yaml).
+  ``pressure_watch_delay_s`` and while the valves get the loop's commands. The loop holds the
+  head still then (its corrections move the pressure by a few pascals a tick), so the air moved
+  by itself: a valve stuck open or shut, a seam opening, the supply lost. The pressure sensor
+  sees it at once, where the cameras see the head move a quarter of a second later (their
+  latency and noise). The loop goes on: it is what can still fight a stuck inlet with the
+  outlet (held currents could not: measured, the head rose 6.2 mm holding and 4.3 mm with the
+  loop on, assets/faults/inlet-stuck-open.yaml).
 - ``overpressure`` (vent): the bladder's gauge pressure (its sensor) is above
   ``max_gauge_pressure_pa``, or the sensor reads no number.
 

@@ -24,17 +24,15 @@ from ``scenario.metrics.evaluation_delay_s`` after the judged step to the end (t
   (a larger ``--trials`` adds the rest); a different configuration is refused, not mixed in.
 """
 
-import concurrent.futures
 import dataclasses
+import functools
 import hashlib
-import itertools
 import json
-import multiprocessing
 import os
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Iterator
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from importlib import metadata
@@ -55,6 +53,7 @@ from maskless.diagrams.population import (
     patient_reach,
     sweep_scenario,
 )
+from maskless.diagrams.process_pool import IN_FLIGHT_PER_WORKER, bounded, pool_results
 from maskless.diagrams.scenario import PaperLqg, controller_from_shorthand
 from maskless.diagrams.simulation import simulate_loop
 from maskless.errors import ConfigError, SweepError
@@ -89,9 +88,6 @@ TABLE_NAME, SUMMARY_NAME, PLOT_NAME = "trials.csv", "summary.json", "population.
 RECORD_NAME, CONFIG_NAME = "sweep.json", "population.yaml"
 # The two signals a trial's metrics need; logging nothing else keeps each run cheap.
 _LOGGED = ("head_height_m", "reference_head_height_m")
-# Trials handed to the engine ahead of those finished, per worker: enough to keep every worker
-# busy, few enough that a sweep of any length holds only a handful in memory.
-_IN_FLIGHT_PER_WORKER = 4
 
 
 # Building a loop (Drake's scalar conversion of the templated plant for Linearize, the symbolic
@@ -413,21 +409,7 @@ def _engine_results(
 
 
 def _pool_results(config, key: str, trials: list[int], workers: int) -> Iterator[list[dict]]:
-    # Spawned, not forked: a fork would copy this process's Drake and threads mid-state.
-    context = multiprocessing.get_context("spawn")
-    with concurrent.futures.ProcessPoolExecutor(
-        workers, mp_context=context, initializer=_exit_with_parent, initargs=(os.getpid(),)
-    ) as pool:
-
-        def first_done(pending):
-            return concurrent.futures.wait(pending, return_when=concurrent.futures.FIRST_COMPLETED)
-
-        yield from _bounded(
-            lambda trial: pool.submit(trial_rows, config, key, trial),
-            first_done,
-            trials,
-            workers * _IN_FLIGHT_PER_WORKER,
-        )
+    return pool_results(functools.partial(trial_rows, config, key), trials, workers)
 
 
 def _dask_results(address: str, config, key: str, trials: list[int]) -> Iterator[list[dict]]:
@@ -444,32 +426,14 @@ def _dask_results(address: str, config, key: str, trials: list[int]) -> Iterator
         def first_done(pending):
             return wait(pending, return_when="FIRST_COMPLETED")
 
-        yield from _bounded(
+        yield from bounded(
             lambda trial: client.submit(
                 trial_rows, config, key, trial, key=f"maskless-trial-{key[:12]}-{trial}"
             ),
             first_done,
             trials,
-            workers * _IN_FLIGHT_PER_WORKER,
+            workers * IN_FLIGHT_PER_WORKER,
         )
-
-
-def _bounded(
-    submit: Callable[[int], object],
-    first_done: Callable[[set], tuple[set, set]],
-    trials: Iterable[int],
-    window: int,
-) -> Iterator[list[dict]]:
-    """Results as they finish, with at most ``window`` trials submitted and not yet collected."""
-    queue = iter(trials)
-    pending = {submit(trial) for trial in itertools.islice(queue, window)}
-    while pending:
-        done, pending = first_done(pending)
-        for future in done:
-            yield future.result()
-            for trial in queue:
-                pending.add(submit(trial))
-                break
 
 
 def _killed_worker_error() -> type:
@@ -477,17 +441,6 @@ def _killed_worker_error() -> type:
     from distributed.scheduler import KilledWorker
 
     return KilledWorker
-
-
-def _exit_with_parent(parent_pid: int) -> None:
-    """A pool worker ends when the sweep that started it is gone (killed), instead of lingering."""
-
-    def watch():
-        while os.getppid() == parent_pid:
-            time.sleep(0.5)
-        os._exit(1)
-
-    threading.Thread(target=watch, daemon=True).start()
 
 
 def _progress_bar(request: SweepRequest, todo: list[int]):

@@ -27,6 +27,7 @@ CONFIG = SafetyConfig(
     travel_margin_m=0.005,
     max_gauge_pressure_pa=15_000.0,
     max_full_inlet_s=1.0,
+    disagreement_persist_s=0.3,
     max_pressure_step_pa=40.0,
     pressure_watch_delay_s=0.5,
     estimate_margin_m=0.0003,
@@ -138,7 +139,6 @@ def test_the_held_currents_are_an_exponential_average_of_the_healthy_commands():
     [
         ({"fusion_health": [1.0, 0.0, 0.0]}, "camera_excluded"),
         ({"fusion_health": [0.0, 0.0, 0.0]}, "no_camera"),
-        ({"fusion_health": [2.0, 1.0, 0.0]}, "cameras_disagree"),
         ({"fusion_health": [2.0, 0.0, 1.0]}, "estimate_uncertain"),
         ({"fused_estimated_state": [HIGH_M + 0.0051, 0.0]}, "outside_travel"),
         ({"fused_estimated_state": [LOW_M - 0.0051, 0.0]}, "outside_travel"),
@@ -272,3 +272,24 @@ def test_a_limit_out_of_range_is_refused_by_name(field, value):
 
     with pytest.raises(ConfigError, match=f"safety.{field}"):
         validate_safety(dataclasses.replace(CONFIG, **{field: value}), TOLERANCE_M)
+
+
+def test_a_disagreement_holds_the_beam_at_once_and_the_air_if_it_persists():
+    s = Supervisor()
+    s.tick(round(CONFIG.beam_dwell_s / PERIOD_S) + 3)
+    assert s.out("beam_hold")[0] == 0.0
+    s.set(fusion_health=[2.0, 1.0, 0.0])
+    assert s.out("beam_hold")[0] == 1.0  # no tick yet
+    ticks = round(CONFIG.disagreement_persist_s / PERIOD_S)
+    s.tick(ticks - 1)
+    assert s.latched() == set() and s.mode() == "pass"
+    s.tick()
+    assert s.latched() == {"cameras_disagree"} and s.mode() == "hold"
+
+
+def test_a_disagreement_ended_by_a_camera_left_out_lets_the_loop_go_on():
+    s = Supervisor()
+    s.tick(3)
+    s.tick(2, fusion_health=[2.0, 1.0, 0.0])
+    s.tick(5, fusion_health=[1.0, 0.0, 0.0])  # the fusion left the wrong camera out
+    assert s.latched() == {"camera_excluded"} and s.mode() == "pass"

@@ -8,8 +8,11 @@ Each reason has its safe action (``SAFE_ACTIONS``):
   own checks flagged it, ``fault_detection``). The loop goes on with the others (degraded mode):
   holding the air would be no safer than a loop that still sees the head.
 - ``no_camera`` (hold): the fusion uses no camera.
-- ``cameras_disagree`` (hold): two cameras the fusion uses disagree, and nothing says which one
-  is wrong.
+- ``cameras_disagree`` (hold): two cameras the fusion uses have disagreed for
+  ``disagreement_persist_s``, and nothing says which one is wrong. A camera's own checks usually
+  name it first (a biased one's frames are rejected within half a second) and the fusion leaves
+  it out: then the loop goes on with the other (``camera_excluded``). The beam is held from the
+  first tick of disagreement.
 - ``estimate_uncertain`` (hold): the fused height's std is above its bound.
 - ``outside_travel`` (hold): a camera sees the head outside the bladder's travel, widened by
   ``travel_margin_m`` (or the estimate is not finite): no height the bladder can give.
@@ -108,6 +111,7 @@ class SafetyConfig:
         travel_margin_m: how far outside the bladder's travel an estimate may lie (m).
         max_gauge_pressure_pa: the bladder's pressure limit (Pa, gauge).
         max_full_inlet_s: the longest the inlet may be fully open in a row (s).
+        disagreement_persist_s: how long two cameras may disagree before the air is held (s).
         max_pressure_step_pa: the largest pressure change in one tick of a still loop (Pa).
         pressure_watch_delay_s: the loop is still this long after the reference last moved (s).
         estimate_margin_m: the beam is held while the controller's estimated error is within
@@ -122,6 +126,7 @@ class SafetyConfig:
     travel_margin_m: float = UNSET
     max_gauge_pressure_pa: float = UNSET
     max_full_inlet_s: float = UNSET
+    disagreement_persist_s: float = UNSET
     max_pressure_step_pa: float = UNSET
     pressure_watch_delay_s: float = UNSET
     estimate_margin_m: float = UNSET
@@ -143,6 +148,11 @@ def validate_safety(config: SafetyConfig, tolerance_m: float) -> None:
             (0 <= config.travel_margin_m < math.inf, "travel_margin_m", "a margin >= 0"),
             (0 < config.max_gauge_pressure_pa < math.inf, "max_gauge_pressure_pa", positive),
             (0 < config.max_full_inlet_s < math.inf, "max_full_inlet_s", positive),
+            (
+                0 <= config.disagreement_persist_s < math.inf,
+                "disagreement_persist_s",
+                "a time >= 0",
+            ),
             (0 < config.max_pressure_step_pa < math.inf, "max_pressure_step_pa", positive),
             (
                 0 <= config.pressure_watch_delay_s < math.inf,
@@ -267,6 +277,7 @@ def add_safety_supervisor(
     last_pressure = Variable("last_gauge_pressure_pa")
     # How long the reference has held still, and the reference it holds.
     steady_s, last_reference = Variable("steady_s"), Variable("last_reference_m")
+    disagree_s = Variable("disagree_s")  # how long the cameras have disagreed
     low, high = head_height_limits_m
     margin = config.travel_margin_m
     commands_finite = _commands_finite(inlet, outlet)
@@ -286,7 +297,10 @@ def add_safety_supervisor(
             logical_and(watching, seen), tracks_used < camera_count - 0.5
         ),
         "no_camera": logical_and(watching, logical_not(seen)),
-        "cameras_disagree": logical_and(watching, disagreement > 0.5),
+        "cameras_disagree": logical_and(
+            logical_and(watching, disagreement > 0.5),
+            reached(disagree_s + period_s, config.disagreement_persist_s),
+        ),
         "estimate_uncertain": logical_and(watching, uncertain > 0.5),
         "outside_travel": logical_and(
             logical_and(watching, seen),
@@ -310,9 +324,15 @@ def add_safety_supervisor(
         "overpressure": logical_not(pressure <= config.max_gauge_pressure_pa),
     }
     band = tolerance_m - config.estimate_margin_m
+    # On target: both estimates within their bands, and the cameras agree.
     on_target = logical_and(
-        _within(estimated - reference, -band, band),
-        _within(fused_height - reference, -config.fused_error_band_m, config.fused_error_band_m),
+        logical_and(
+            _within(estimated - reference, -band, band),
+            _within(
+                fused_height - reference, -config.fused_error_band_m, config.fused_error_band_m
+            ),
+        ),
+        disagreement < 0.5,
     )
     cleared = reset > 0.5
     next_latched = [
@@ -375,6 +395,7 @@ def add_safety_supervisor(
         last_pressure,
         steady_s,
         last_reference,
+        disagree_s,
     ]
     return add_named_symbolic_system(
         builder,
@@ -408,6 +429,7 @@ def add_safety_supervisor(
             Expression(pressure),
             if_then_else(reference == last_reference, steady_s + period_s, 0.0),
             Expression(reference),
+            if_then_else(disagreement > 0.5, disagree_s + period_s, 0.0),
         ],
         time_period=period_s,
     )

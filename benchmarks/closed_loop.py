@@ -44,9 +44,15 @@ sys.path.insert(0, str(Path(__file__).parent))
 from machine import machine_description  # noqa: E402
 
 
-def core_real_time_factor(duration_s: float, repeats: int, plant_context_parameters=()) -> float:
+def core_real_time_factor(
+    duration_s: float, repeats: int, plant_context_parameters=(), supervisor: bool = True
+) -> float:
     """Best of ``repeats``: the diagram alone, built once, simulated from a fresh context."""
     config = load_scenario()
+    if not supervisor:
+        config = dataclasses.replace(
+            config, safety=dataclasses.replace(config.safety, enabled=False)
+        )
     loop = build_closed_loop(
         config, record=False, plant_context_parameters=plant_context_parameters
     )
@@ -147,6 +153,7 @@ def main():
             f"--duration {args.duration} and --repeats {args.repeats} must be positive"
         )
     core = core_real_time_factor(args.duration, args.repeats)
+    unsupervised = core_real_time_factor(args.duration, args.repeats, supervisor=False)
     swept = core_real_time_factor(args.duration, args.repeats, SWEPT_PARAMETERS)
     every = core_real_time_factor(args.duration, args.repeats, STEP_PARAMETERS)
     figures = {
@@ -154,6 +161,8 @@ def main():
         "simulated_s_per_run": args.duration,
         # The default loop compiles every plant constant into its expressions.
         "core_diagram_x_real_time": core,
+        # The same loop without the safety supervisor: what the supervisor costs.
+        "core_diagram_without_safety_supervisor_x_real_time": unsupervised,
         # Built for a sweep: head mass, stiffness, damping, leak, valve conductances and supply
         # pressure in the Context; and every constant of the step in the Context.
         "core_diagram_swept_constants_in_context_x_real_time": swept,

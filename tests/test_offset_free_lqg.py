@@ -1,8 +1,10 @@
 """The offset-free LQG: gains against scipy's DARE, offset-free under a disturbance, anti-windup."""
 
 import numpy as np
+import pydrake.math as dm
 import pytest
 import scipy.linalg
+from pydrake.symbolic import Expression, MakeVectorVariable, Variable
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import (
@@ -221,3 +223,79 @@ def test_the_estimated_height_starts_at_rest_and_follows_the_plant(design):
     assert estimate.Eval(controller.GetMyContextFromRoot(context))[0] == pytest.approx(
         y[-1], abs=1e-9
     )
+
+
+def _one_system_update(design, allocation, state, fused_height, reference):
+    """The controller's next state as one system's expressions computed it (before the split)."""
+    model = design.model
+    n = model.A.shape[0]
+    low, high = (c - model.operating_input for c in allocation.command_range)
+    start_deviation = Y0 - model.operating_output
+    start_state = design.estimator_state_at(start_deviation)
+    start_command = float(np.clip(design.command_per_reference * start_deviation, low, high))
+    start_currents = [float(c) for c in allocation.currents(model.operating_input + start_command)]
+    offsets = MakeVectorVariable(start_state.size, "x_hat_offset")
+    fused, r = Variable("fused"), Variable("reference")
+    with np.errstate(invalid="ignore"):
+        predicted = np.array([start_state[k] + offsets[k] for k in range(start_state.size)])
+        innovation = fused - model.operating_output - (design.augmented_C @ predicted)[0]
+        corrected = predicted + design.M[:, 0] * innovation
+        deviation = r - model.operating_output
+        command = (
+            design.command_per_reference * deviation
+            - corrected[n]
+            - (design.K @ (corrected[:n] - design.state_per_reference * deviation))[0]
+        )
+        applied = dm.min(dm.max(command, low), high)
+        next_predicted = design.augmented_A @ corrected + design.augmented_B[:, 0] * applied
+        currents = allocation.currents(model.operating_input + applied)
+        expressions = [
+            *(next_predicted - start_state),
+            applied - start_command,
+            currents[0] - start_currents[0],
+            currents[1] - start_currents[1],
+        ]
+    environment = {v: x for v, x in zip(offsets, state, strict=False)}
+    environment.update({fused: fused_height, r: reference})
+    return np.array(
+        [e.Evaluate(environment) if isinstance(e, Expression) else e for e in expressions]
+    )
+
+
+@pytest.mark.parametrize("delay", [0, 2])
+def test_the_command_computed_once_changes_no_bit(delay):
+    """``{name}.command`` computes the command once; the update is the one-system update's bits."""
+    model = LinearModel(
+        A=[[0.9, 0.05], [0.0, 0.7]],
+        B=[[0.02], [0.3]],
+        C=[[1.0, 0.0]],
+        D=[[0.0]],
+        sample_period_s=T,
+        operating_input=U0,
+        operating_output=Y0,
+        input_unit="m",
+        output_unit="m",
+    )
+    design = design_offset_free_lqg(model, WEIGHTS, measurement_delay_samples=delay)
+    # Several segments, so the currents read the command in many places; and tight limits, so
+    # some draws saturate it.
+    allocation = SplitRangeAllocation(
+        np.array([U0 - 0.02, U0 - 0.005, U0, U0 + 0.004, U0 + 0.01, U0 + 0.02]),
+        np.array([0.0, 0.0, 0.01, 0.05, 0.12, 0.165]),
+        np.array([0.165, 0.02, 0.0, 0.0, 0.0, 0.0]),
+    )
+    controller = make_offset_free_lqg(design, allocation, Y0)
+    context = controller.CreateDefaultContext()
+    rng = np.random.default_rng(0)
+    saturated = 0
+    for _ in range(200):
+        state = rng.normal(scale=0.01, size=context.get_discrete_state_vector().size())
+        fused_height, reference = Y0 + rng.normal(scale=0.01, size=2)
+        context.SetDiscreteState(state)
+        controller.GetInputPort("fused_estimated_state").FixValue(context, [fused_height, 0.0])
+        controller.GetInputPort("reference_head_height_m").FixValue(context, [reference])
+        update = controller.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
+        expected = _one_system_update(design, allocation, state, fused_height, reference)
+        np.testing.assert_array_equal(update, expected)
+        saturated += abs(update[-3] + 0.0) >= 0.02 - 1e-12
+    assert 0 < saturated < 200

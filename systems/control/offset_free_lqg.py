@@ -15,7 +15,8 @@ which the filter gain M = P Cᵀ (C P Cᵀ + V)⁻¹ corrects the estimate with 
 same tick (the predictor gain A P Cᵀ (...)⁻¹ that ``DiscreteTimeSteadyStateKalmanFilter`` returns
 would add a sample of delay).
 
-Running is one discrete system (``add_offset_free_lqg``). Every period it
+Running is one discrete system (``add_offset_free_lqg``), which reads its command from a stateless
+one (``{name}.command``) so that the command is computed once per tick. Every period it
 
 1. corrects its prediction with the fused height: x̂ = x̂⁻ + M (y - C x̂⁻);
 2. commands u = N_u Δr - d̂ - K (x̂ - N_x Δr), where (N_x, N_u) is the steady state and input that
@@ -310,21 +311,41 @@ def add_offset_free_lqg(
         - d_hat
         - (design.K @ (x_hat - design.state_per_reference * reference_deviation))[0]
     )
-    applied = dm.min(dm.max(command, low), high)
+    # A symbolic system evaluates every copy of a sub-expression, and the command (with the
+    # innovation in it) appears in every next estimate and in each of the allocation's segments,
+    # 17 copies in all (about three quarters of the update's nodes). So a first system,
+    # ``{name}.command``, computes the command once, up to its lower limit, and the controller
+    # reads it as a variable: min(bounded_below, high) is the same node over the same value, and
+    # a min sorts after the sums beside it as before, so every sum adds its terms in the same
+    # order and no bit changes (tests/test_offset_free_lqg.py checks).
+    bounded_below = Variable("command_bounded_below")
+    applied = dm.min(bounded_below, high)
     next_predicted = design.augmented_A @ corrected + design.augmented_B[:, 0] * applied
 
     # The currents are computed at the tick and held as state: the plant reads them every step,
     # and a state output costs nothing to evaluate.
     next_currents = allocation.currents(model.operating_input + applied)
-    return add_named_symbolic_system(
+    command_ports = add_named_symbolic_system(
+        builder,
+        f"{name}.command",
+        inputs=[
+            ("fused_estimated_state", list(fused)),
+            ("reference_head_height_m", [reference]),
+            ("predicted_estimate_offset", list(predicted_offset)),
+        ],
+        # The fused height passes through, so the controller needs no Multiplexer of its own.
+        outputs=[("command_input", [fused[0], dm.max(command, low)])],
+    )
+    ports = add_named_symbolic_system(
         builder,
         name,
-        inputs=[("fused_estimated_state", list(fused)), ("reference_head_height_m", [reference])],
+        inputs=[("command_input", [fused[0], bounded_below])],
         outputs=[
             ("inlet_valve_current_a", [start_currents[0] + current_offsets[0]]),
             ("outlet_valve_current_a", [start_currents[1] + current_offsets[1]]),
             ("command", [model.operating_input + held_command]),
             ("estimated_head_height_m", [model.operating_output + (model.C @ predicted[:n])[0]]),
+            ("predicted_estimate_offset", list(predicted_offset)),
         ],
         state=[*predicted_offset, held_command_offset, *current_offsets],
         dynamics=[
@@ -335,6 +356,13 @@ def add_offset_free_lqg(
         ],
         time_period=model.sample_period_s,
     )
+    builder.Connect(command_ports.outputs["command_input"], ports.inputs.pop("command_input"))
+    builder.Connect(
+        ports.outputs.pop("predicted_estimate_offset"),
+        command_ports.inputs.pop("predicted_estimate_offset"),
+    )
+    ports.inputs = command_ports.inputs
+    return ports
 
 
 make_offset_free_lqg = diagram_form(add_offset_free_lqg)

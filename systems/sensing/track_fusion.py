@@ -96,8 +96,8 @@ def add_track_fusion(
         track_names: one name per local track; the inputs are ``{name}_estimated_state`` (2),
             ``{name}_covariance`` (4, row-major) and ``{name}_health`` (``TRACK_FLAGS``).
         detection: the disagreement and uncertainty bounds.
-        name: the fusion system's name; its other systems are ``{name}.inverses`` (each pair's
-            inverse, computed once) and ``{name}.health``.
+        name: the fusion system's name; its other system is ``{name}.inverses`` (each pair's
+            inverse, computed once).
 
     The output is a direct function of the inputs (no state), so it always fuses the tracks as they
     are at that instant. ``health`` is ``FUSION_HEALTH``: the tracks used, then 1 where a flag is
@@ -154,6 +154,14 @@ def add_track_fusion(
             )
         ],
     )
+    fused_covariance = [
+        if_then_else(healthy > 0.5, a, b) for a, b in _pairs(plain.covariance, flagged.covariance)
+    ]
+    # The health is part of the fusion's output: every tick the safety supervisor reads it beside
+    # the estimate, and a system of its own (with the Multiplexer its inputs need) cost more per
+    # tick than its few nodes here. Its "uncertain" flag reads the fused variance from the same
+    # expression as the covariance output, so to the same bits.
+    used = [if_then_else(count < 0.5, 1.0, 0.0) for count in flag_counts]
     fusion = add_named_symbolic_system(
         builder,
         name,
@@ -163,46 +171,19 @@ def add_track_fusion(
                 "estimated_state",
                 [if_then_else(healthy > 0.5, a, b) for a, b in _pairs(plain.state, flagged.state)],
             ),
+            ("covariance", fused_covariance),
             (
-                "covariance",
+                "health",
                 [
-                    if_then_else(healthy > 0.5, a, b)
-                    for a, b in _pairs(plain.covariance, flagged.covariance)
+                    sum(used),
+                    _disagreement(states, raw_covariances, used, detection.disagreement_sigmas),
+                    if_then_else(fused_covariance[0] > detection.max_fused_std_m**2, 1.0, 0.0),
                 ],
             ),
         ],
     )
     builder.Connect(inverses.outputs["fusion_input"], fusion.inputs.pop("fusion_input"))
     fusion.inputs = inverses.inputs
-    # The health is a system of its own on the same input vector: only its readers (the log, a
-    # supervisor) pay for it, not the controller's every reading of the estimate.
-    # It reads the fused variance from the fusion's output rather than fusing again.
-    used = [if_then_else(count < 0.5, 1.0, 0.0) for count in flag_counts]
-    fused_variance = Variable("fused_variance_m2")
-    health = add_named_symbolic_system(
-        builder,
-        f"{name}.health",
-        inputs=[
-            ("tracks", [v for _, variables in inputs for v in variables]),
-            ("fused_covariance", [fused_variance, *MakeVectorVariable(3, "fused_P_rest")]),
-        ],
-        outputs=[
-            (
-                "health",
-                [
-                    sum(used),
-                    _disagreement(states, raw_covariances, used, detection.disagreement_sigmas),
-                    if_then_else(fused_variance > detection.max_fused_std_m**2, 1.0, 0.0),
-                ],
-            )
-        ],
-    )
-    builder.Connect(
-        builder.GetSubsystemByName(f"{name}.inverses.inputs").get_output_port(),
-        health.inputs["tracks"],
-    )
-    builder.Connect(fusion.outputs["covariance"], health.inputs["fused_covariance"])
-    fusion.outputs["health"] = health.outputs["health"]
     return fusion
 
 

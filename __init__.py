@@ -13,9 +13,9 @@ The public API, one import away::
 
 Every command of the ``maskless`` CLI is one call here: ``simulate`` (`maskless simulate`),
 ``excite`` (`maskless excite`), ``identify_record`` (`maskless identify`),
-``analyze_operating_range`` and ``analyze_stability`` (`maskless analyze`), ``run_sweep``
-(`maskless montecarlo`) and ``run_workflow`` (`maskless workflow`). Errors a user can cause are
-``MasklessError``s that name the file, field or argument at fault.
+``analyze_operating_range``, ``analyze_stability`` and ``run_fault_matrix`` (`maskless
+analyze`), ``run_sweep`` (`maskless montecarlo`) and ``run_workflow`` (`maskless workflow`).
+Errors a user can cause are ``MasklessError``s that name the file, field or argument at fault.
 
 Names are imported when first used, so ``import maskless`` stays cheap.
 """
@@ -42,6 +42,8 @@ _EXPORTS = {
     "simulate": "maskless.diagrams.simulation",
     "simulate_loop": "maskless.diagrams.simulation",
     "set_plant_parameters": "maskless.diagrams.closed_loop",
+    "set_safety_reset": "maskless.diagrams.closed_loop",
+    "SafetyConfig": "maskless.systems.control.safety_supervisor",
     "SWEPT_PARAMETERS": "maskless.systems.plant.pneumatic_plant",
     "SimulationRun": "maskless.diagrams.simulation",
     "excite": "maskless.diagrams.excitation_run",
@@ -63,6 +65,8 @@ _EXPORTS = {
     "analyze_stability": "maskless.diagrams.plant_analysis",
     "StabilityRequest": "maskless.diagrams.plant_analysis",
     "run_workflow": "maskless.diagrams.workflow",
+    "run_fault_matrix": "maskless.diagrams.fault_matrix",
+    "FaultMatrixRequest": "maskless.diagrams.fault_matrix",
     # recordings
     "read_recording": "maskless.recording",
     "read_camera_frames": "maskless.recording",

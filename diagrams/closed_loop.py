@@ -121,6 +121,10 @@ class AddedPlant:
     gauge_pressure: OutputPort | None = None
 
 
+# The ConstantVectorSource a person's reset of the safety supervisor comes from.
+SAFETY_RESET_NAME = "safety_reset"
+
+
 def reference_levels(reference: ReferenceConfig, start_height_m: float) -> list[float]:
     """The reference's absolute heights (m): the start, then the height after each step."""
     return [start_height_m] + [start_height_m + o for o in reference.step_offsets_m]
@@ -568,7 +572,7 @@ def _add_supervisor(builder, config: Scenario, plant: AddedPlant, drive: LoopDri
         inlet_saturation_a=p.inlet.saturation_current_a,
         outlet_saturation_a=p.outlet.saturation_current_a,
     )
-    reset = builder.AddNamedSystem("safety_reset", ConstantVectorSource([0.0]))
+    reset = builder.AddNamedSystem(SAFETY_RESET_NAME, ConstantVectorSource([0.0]))
     for port, source in (
         ("inlet_command_a", drive.inlet),
         ("outlet_command_a", drive.outlet),
@@ -581,6 +585,17 @@ def _add_supervisor(builder, config: Scenario, plant: AddedPlant, drive: LoopDri
     ):
         builder.Connect(source, safety.inputs[port])
     return safety
+
+
+def set_safety_reset(diagram: Diagram, context: Context, raised: bool) -> None:
+    """Raises (or lowers) the safety supervisor's reset: at its next tick, every reason clears.
+
+    A latched reason stays until a person resets it, as a real positioner's would: raise the reset,
+    simulate past a tick, lower it (a reset held up clears each reason again at every tick).
+    """
+    source = diagram.GetSubsystemByName(SAFETY_RESET_NAME)
+    value = source.get_mutable_source_value(source.GetMyMutableContextFromRoot(context))
+    value.set_value([1.0 if raised else 0.0])
 
 
 def logged_signals(

@@ -6,8 +6,13 @@ import json
 import numpy as np
 import pytest
 from mcap.reader import make_reader
+from pydrake.systems.analysis import Simulator
 
-from maskless.diagrams.closed_loop import build_closed_loop, set_plant_parameters
+from maskless.diagrams.closed_loop import (
+    build_closed_loop,
+    set_plant_parameters,
+    set_safety_reset,
+)
 from maskless.diagrams.controller_design import NominalPneumatic
 from maskless.diagrams.run_recording import signal_channels
 from maskless.diagrams.scenario import controller_from_shorthand, plant_from_shorthand
@@ -262,3 +267,23 @@ def test_both_cameras_lost_reach_the_safe_state_within_half_a_second_and_hold_th
     assert first_holding == round(first["first_s"] * 1e9)
     _, reasons = read_recording(path).topic_arrays("/safety/status", "reasons")
     assert first["reason"] in reasons[-1].split(",")
+
+
+def test_a_latched_fault_waits_for_a_reset_and_the_loop_resumes_after_it(config):
+    """Both cameras lost for 3 s: the supervisor holds until a person resets it."""
+    lost = {
+        name: FaultConfig("camera_dead", name, 20.0, 3.0) for name in ("kinect_v1", "kinect_v2")
+    }
+    loop = build_closed_loop(dataclasses.replace(config, faults=lost), record=("safety.mode",))
+    simulator = Simulator(loop.diagram)
+    context = simulator.get_mutable_context()
+    mode = loop.diagram.GetOutputPort("safety.mode")
+    simulator.AdvanceTo(30.0)  # the cameras are back since 23 s: still holding
+    assert mode.Eval(context)[0] == 1.0
+    set_safety_reset(loop.diagram, context, True)
+    simulator.AdvanceTo(30.1)
+    set_safety_reset(loop.diagram, context, False)
+    simulator.AdvanceTo(31.0)
+    assert mode.Eval(context)[0] == 0.0
+    reasons = loop.diagram.GetOutputPort("safety.reasons").Eval(context)
+    assert not reasons.any()

@@ -71,6 +71,9 @@ def _run_figures(rows: list[dict], tolerance_mm: float) -> dict:
         "settle_time_s": _spread(settle, high=True),
         # Over the runs that ran: a failed run has no trajectory to overshoot.
         "overshoot_mm": _spread(_column(ran, "overshoot_mm", failed=np.nan, missing=0.0), True),
+        # The safety supervisor: runs that ended with a reason latched, and that held the air.
+        "safety_latched_fraction": _share(np.array([bool(r.get("safety_latched")) for r in ran])),
+        "safety_held_air_fraction": _share(np.array([bool(r.get("safety_held_air")) for r in ran])),
     }
 
 
@@ -132,6 +135,13 @@ def summary_table(summary: dict) -> str:
             lambda f: _triple(f["settle_time_s"], "p90", infinite="never"),
         ),
         ("overshoot median / p90 / worst (mm)", lambda f: _triple(f["overshoot_mm"], "p90")),
+        (
+            "safety supervisor: a reason latched / held the air",
+            lambda f: (
+                f"{_percent(f['safety_latched_fraction'])} / "
+                f"{_percent(f['safety_held_air_fraction'])}"
+            ),
+        ),
     ]
     width = max(len(label) for label, _ in lines)
     header = " " * width + "".join(f"  {name:>22}" for name in per)

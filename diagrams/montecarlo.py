@@ -57,6 +57,7 @@ from maskless.diagrams.process_pool import IN_FLIGHT_PER_WORKER, bounded, pool_r
 from maskless.diagrams.scenario import PaperLqg, controller_from_shorthand
 from maskless.diagrams.simulation import simulate_loop
 from maskless.errors import ConfigError, SweepError
+from maskless.systems.control.safety_supervisor import safety_states
 from maskless.systems.plant.pneumatic_plant import SWEPT_PARAMETERS
 from maskless.systems.units import m_to_mm
 
@@ -70,6 +71,8 @@ METRIC_COLUMNS = (
     "time_within_tolerance_fraction",
     "overshoot_mm",
     "final_error_mm",
+    "safety_latched",
+    "safety_held_air",
 )
 ROW_COLUMNS = (
     "trial",
@@ -81,13 +84,15 @@ ROW_COLUMNS = (
     "error",
 )
 """A row: the trial (the patient), its run (seed), the controller, the draws, whether the
-controller's valves can hold the patient's head at both reference levels, the metrics (mm and s)
-and, for a run that failed, why (empty otherwise)."""
+controller's valves can hold the patient's head at both reference levels, the metrics (mm and s),
+the reasons the safety supervisor had latched at the end (comma-separated) and whether it held the
+air at any time, and, for a run that failed, why (empty otherwise)."""
 
 TABLE_NAME, SUMMARY_NAME, PLOT_NAME = "trials.csv", "summary.json", "population.png"
 RECORD_NAME, CONFIG_NAME = "sweep.json", "population.yaml"
-# The two signals a trial's metrics need; logging nothing else keeps each run cheap.
+# The signals a trial's metrics need; logging nothing else keeps each run cheap.
 _LOGGED = ("head_height_m", "reference_head_height_m")
+_SAFETY_LOGGED = ("safety.reasons", "safety.mode")
 
 
 # Building a loop (Drake's scalar conversion of the templated plant for Linearize, the symbolic
@@ -122,7 +127,7 @@ class TrialRunner:
         scenario.controller = controller_from_shorthand(controller)
         return build_closed_loop(
             scenario,
-            record=_LOGGED,
+            record=_LOGGED + (_SAFETY_LOGGED if scenario.safety.enabled else ()),
             nominal=self.nominal,
             plant_context_parameters=SWEPT_PARAMETERS,
         )
@@ -190,6 +195,11 @@ class TrialRunner:
         )
         if not np.all(np.isfinite(head.values)):
             raise FloatingPointError("the head height went non-finite")
+        safety = {"safety_latched": None, "safety_held_air": None}
+        if "safety.reasons" in run.signals:
+            mode, reasons = run.signals["safety.mode"].values[0], run.signals["safety.reasons"]
+            safety["safety_latched"] = safety_states(mode[-1:], reasons.values[:, -1:])[1][0]
+            safety["safety_held_air"] = bool(np.any(mode > 0.5))
         return {
             "settled": metrics.settled,
             "settle_time_s": metrics.settle_time_s,
@@ -199,6 +209,7 @@ class TrialRunner:
             "time_within_tolerance_fraction": metrics.time_within_tolerance_fraction,
             "overshoot_mm": _mm(metrics.overshoot_m),
             "final_error_mm": _mm(metrics.final_error_m),
+            **safety,
         }
 
     def error_trace_mm(

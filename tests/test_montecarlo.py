@@ -75,10 +75,14 @@ def test_a_nominal_patients_row_is_what_simulate_reports_for_the_same_run(tmp_pa
         offsets = [level - start_m for level in levels[1:]]
         scenario = sweep_scenario(config, offsets, seed=patient.seed)
         scenario.controller = controller_from_shorthand(row["controller"])
-        tracking = simulate(scenario).metrics["tracking"]
+        metrics = simulate(scenario).metrics
+        tracking = metrics["tracking"]
         for name in ("p95_abs_error_mm", "max_abs_error_mm", "overshoot_mm", "final_error_mm"):
             assert row[name] == pytest.approx(tracking[name], abs=1e-9), name
         assert row["time_within_tolerance_fraction"] == tracking["time_within_tolerance_fraction"]
+        assert row["safety_latched"] == ",".join(metrics["safety"]["latched_at_end"])
+        held = any(e["action"] != "continue" for e in metrics["safety"]["events"])
+        assert row["safety_held_air"] == held
 
 
 def test_the_draw_reaches_the_plant_and_the_reference_and_nothing_else(tmp_path):

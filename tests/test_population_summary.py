@@ -86,3 +86,13 @@ def test_each_controller_is_summarised_on_its_own_rows():
     assert per["b"]["p95_abs_error_mm"]["worst"] == 3.0
     table = summary_table(summarize_population(rows, ["a", "b"], 0.001))
     assert "0.10 / 0.10 / 0.10" in table and "3.00 / 3.00 / 3.00" in table
+
+
+def test_the_supervisors_share_of_runs_counts_the_runs_that_ran():
+    rows = [row(k) for k in range(4)] + [failed(4)]
+    for r, latched, held in zip(rows, ["", "pressure_jump", "no_camera", ""], [0, 0, 1, 0]):
+        r.update(safety_latched=latched, safety_held_air=bool(held))
+    figures = summarize_population(rows, ["c"], 0.001)["per_controller"]["c"]
+    assert figures["safety_latched_fraction"] == 0.5
+    assert figures["safety_held_air_fraction"] == 0.25
+    assert "50.0 % / 25.0 %" in summary_table(summarize_population(rows, ["c"], 0.001))

@@ -55,7 +55,7 @@ from pydrake.systems.primitives import ConstantVectorSource, RandomSource
 from maskless.errors import ConfigError
 from maskless.systems.config_loading import UNSET, refuse_out_of_range
 from maskless.systems.late_random_sources import LateRandomSources, add_random_source
-from maskless.systems.limits import LATENCY_SPIKE_S
+from maskless.systems.limits import LATENCY_SPIKE_S, at_least_half_a_frame
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
@@ -188,13 +188,10 @@ def _kind_checks(fault: FaultConfig, cameras: Mapping[str, float]):
     if fault.kind == "leak_increase":
         yield 1 < fault.leak_factor < math.inf, "leak_factor", "a finite factor > 1"
     if fault.kind == "latency_spike":
-        half_frame_s = 0.5 / cameras[fault.target]
-        yield (
-            fault.latency_s >= half_frame_s,
-            "latency_s",
-            f"at least half a frame of {fault.target}, {half_frame_s:.4f} s (it is rounded to "
-            "whole frames)",
+        in_range, expected = at_least_half_a_frame(
+            fault.latency_s, cameras[fault.target], fault.target
         )
+        yield in_range, "latency_s", expected
         yield LATENCY_SPIKE_S.contains(fault.latency_s), "latency_s", LATENCY_SPIKE_S.expected()
 
 

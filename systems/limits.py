@@ -109,3 +109,12 @@ OPERATING_RANGE_POINTS = Limit(
     "1000 is a point every 0.1 mA, finer than the valves' 3 % repeatability; each costs a "
     "steady-state solve",
 )
+
+
+def at_least_half_a_frame(latency_s: float, frame_rate_hz: float, of: str) -> tuple[bool, str]:
+    """(in range, what was expected) for a latency rounded to whole frames of ``of``'s rate."""
+    half_frame_s = 0.5 / frame_rate_hz
+    return (
+        latency_s >= half_frame_s,
+        f"at least half a frame of {of}, {half_frame_s:.4f} s (it is rounded to whole frames)",
+    )

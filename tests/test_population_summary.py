@@ -90,7 +90,9 @@ def test_each_controller_is_summarised_on_its_own_rows():
 
 def test_the_supervisors_share_of_runs_counts_the_runs_that_ran():
     rows = [row(k) for k in range(4)] + [failed(4)]
-    for r, latched, held in zip(rows, ["", "pressure_jump", "no_camera", ""], [0, 0, 1, 0]):
+    for r, latched, held in zip(
+        rows[:4], ["", "pressure_jump", "no_camera", ""], [0, 0, 1, 0], strict=True
+    ):
         r.update(safety_latched=latched, safety_held_air=bool(held))
     figures = summarize_population(rows, ["c"], 0.001)["per_controller"]["c"]
     assert figures["safety_latched_fraction"] == 0.5

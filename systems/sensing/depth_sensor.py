@@ -32,7 +32,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import RandomSource
 
 from maskless.systems.config_loading import UNSET, refuse_out_of_range
-from maskless.systems.limits import FRAME_RATE_HZ, LATENCY_S
+from maskless.systems.limits import FRAME_RATE_HZ, LATENCY_S, at_least_half_a_frame
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
@@ -228,13 +228,8 @@ def _range_checks(config: DepthSensorConfig):
     bound is computed from a frame rate already known to be positive.
     """
     yield FRAME_RATE_HZ.contains(config.frame_rate_hz), "frame_rate_hz", FRAME_RATE_HZ.expected()
-    half_frame_s = 0.5 / config.frame_rate_hz
-    yield (
-        config.latency_s >= half_frame_s,
-        "latency_s",
-        f"at least half a frame period, {half_frame_s:.4f} s (it is rounded "
-        "to whole frames, at least one)",
-    )
+    in_range, expected = at_least_half_a_frame(config.latency_s, config.frame_rate_hz, "the camera")
+    yield in_range, "latency_s", expected
     yield LATENCY_S.contains(config.latency_s), "latency_s", LATENCY_S.expected()
     yield 0.0 <= config.dropout_probability < 1.0, "dropout_probability", "a probability in [0, 1)"
     yield (

@@ -14,6 +14,17 @@ def first_set_s(times_s: np.ndarray, flag: np.ndarray, from_s: float = 0.0) -> f
     return float(times_s[set_after[0]]) if set_after.size else None
 
 
+def rises(flag: np.ndarray) -> np.ndarray:
+    """1 where ``flag`` becomes set (set, and not set at the sample before), 0 elsewhere.
+
+    A latched flag is set from its first tick to its reset: when it fired is its rise, and one
+    latched before some later moment did not fire at that moment.
+    """
+    now = np.asarray(flag, float) > 0.5
+    before = np.concatenate([[False], now[:-1]])
+    return (now & ~before).astype(float)
+
+
 def set_fraction(flag: np.ndarray) -> float:
     """The fraction of samples where ``flag`` is set."""
     return float(np.mean(np.asarray(flag, float) > 0.5))

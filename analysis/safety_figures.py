@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from maskless.analysis.detection_figures import first_set_s
+from maskless.analysis.detection_figures import first_set_s, rises
 from maskless.systems.control.safety_supervisor import (
     REASONS,
     SAFE_ACTIONS,
@@ -102,13 +102,14 @@ def safety_figures(log: SafetyLog, tolerance_m: float, from_s: float = 0.0) -> d
 def time_to_safe_state_s(log: SafetyLog, start_s: float) -> tuple[str, float] | tuple[None, None]:
     """The first reason latched at or after ``start_s`` and how long after (s); None if none.
 
-    A latched reason is the safe state: the beam is held from that tick, and the valves get the
-    reason's safe action (``SAFE_ACTIONS``).
+    A reason latched before ``start_s`` (and still latched) does not count: it was no answer to
+    what happened at ``start_s``. A latched reason is the safe state: the beam is held from that
+    tick, and the valves get the reason's safe action (``SAFE_ACTIONS``).
     """
     found = [
         (first, reason)
         for k, reason in enumerate(REASONS)
-        if (first := first_set_s(log.times_s, log.reasons[k], start_s)) is not None
+        if (first := first_set_s(log.times_s, rises(log.reasons[k]), start_s)) is not None
     ]
     if not found:
         return None, None

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from maskless.analysis.fault_matrix_summary import CaseFaults, summarize_fault_matrix
+from maskless.analysis.safety_figures import time_to_safe_state_s
 from maskless.analysis.trial_table import write_trial_table
 from maskless.diagrams.output_folder import RunFolder
 from maskless.diagrams.process_pool import pool_results
@@ -110,6 +111,8 @@ def run_fault_matrix(request: FaultMatrixRequest) -> dict:
     """Runs every (case, seed), writes the files, returns the summary (with ``files``)."""
     if request.seeds < 1:
         raise ConfigError(f"--seeds {request.seeds}: expected at least 1")
+    if not request.scenario.safety.enabled:
+        raise ConfigError("safety.enabled = false: the fault matrix judges the safety supervisor")
     cases = fault_cases(request.cases)
     jobs = [(case, seed) for case in cases for seed in range(request.seeds)]
     # Each case's scenario is checked here, before anything runs: a fault that names a camera
@@ -157,56 +160,46 @@ def fault_matrix_row(scenario: Scenario, cases: dict[str, dict], job: tuple[str,
     case, seed = job
     faults = cases[case]
     row = dict.fromkeys(COLUMNS)
-    row.update(case=case, seed=seed, error="")
     start_s = min((f.start_s for f in faults.values()), default=None)
-    row["fault_start_s"] = start_s
+    row.update(case=case, seed=seed, error="", fault_start_s=start_s)
     try:
         run = simulate(dataclasses.replace(scenario, faults=faults, random_seed=seed))
+        row.update(_judged(run, scenario, start_s))
     except Exception as error:  # a crash is a finding of the matrix, not the end of it
         last = traceback.extract_tb(error.__traceback__)[-1]
         row["error"] = f"{type(error).__name__}: {error} ({Path(last.filename).name}:{last.lineno})"
-        return row
+    return {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in row.items()}
+
+
+def _judged(run, scenario: Scenario, start_s: float | None) -> dict:
+    """A run's figures for its row: detection, safe state, excursion, p95, beam, valves."""
     metrics, s = run.metrics, run.signals
+    safety, log = metrics["safety"], safety_log(s)
+    figures = {key: safety[key] for key in COLUMNS if key in safety}
+    figures["p95_abs_error_mm"] = metrics["tracking"]["p95_abs_error_mm"]
+    figures["max_gauge_pressure_kpa"] = safety.get("max_gauge_pressure_kpa")
     detections = [
         f for f in metrics["fault_detection"]["faults"].values() if f["detected_by"] is not None
     ]
     if detections:
         first = min(detections, key=lambda f: f["start_s"] + f["latency_s"])
-        row["detected_by"] = first["detected_by"]
-        row["detection_latency_s"] = first["start_s"] + first["latency_s"] - start_s
-    safety = metrics.get("safety")
-    if safety is None:
-        raise ConfigError("the fault matrix needs the safety supervisor: safety.enabled: true")
-    if start_s is not None:
-        after = [e for e in safety["events"] if e["first_s"] >= start_s]
-        if after:
-            row["safe_state_reason"] = after[0]["reason"]
-            row["safe_state_latency_s"] = after[0]["first_s"] - start_s
+        figures["detected_by"] = first["detected_by"]
+        figures["detection_latency_s"] = first["start_s"] + first["latency_s"] - start_s
     times, head = s["head_height_m"].times_s, s["head_height_m"].values[0]
     if start_s is not None and start_s <= times[-1]:
+        reason, latency = time_to_safe_state_s(log, start_s)
+        figures["safe_state_reason"], figures["safe_state_latency_s"] = reason, latency
         k = int(np.searchsorted(times, start_s))
-        row["worst_excursion_mm"] = 1e3 * float(np.max(np.abs(head[k:] - head[k])))
-    p95 = metrics["tracking"]["p95_abs_error_mm"]
-    row["p95_abs_error_mm"] = p95
-    for key in (
-        "beam_on_while_off_target_s",
-        "beam_on_while_off_target_fraction",
-        "beam_held_while_on_target_fraction",
-        "beam_hold_fraction",
-        "state_at_end",
-    ):
-        row[key] = safety[key]
-    log = safety_log(s)
+        figures["worst_excursion_mm"] = 1e3 * float(np.max(np.abs(head[k:] - head[k])))
     p = scenario.pneumatic
-    row["valve_currents_out_of_range"] = sum(
+    figures["valve_currents_out_of_range"] = sum(
         int(np.count_nonzero(~(np.isfinite(current) & (current >= 0) & (current <= full))))
         for current, full in (
             (log.inlet_a, p.inlet.saturation_current_a),
             (log.outlet_a, p.outlet.saturation_current_a),
         )
     )
-    row["max_gauge_pressure_kpa"] = safety.get("max_gauge_pressure_kpa")
-    return {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in row.items()}
+    return figures
 
 
 def format_fault_matrix(summary: dict) -> str:

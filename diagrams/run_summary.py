@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from maskless.analysis.detection_figures import detection_latency_s, flag_figures
+from maskless.analysis.detection_figures import detection_latency_s, flag_figures, rises
 from maskless.analysis.metrics import estimate_error_std_m, tracking_metrics
 from maskless.analysis.safety_figures import SafetyLog, safety_figures, time_to_safe_state_s
 from maskless.systems.control.offset_free_lqg import closed_loop_poles as offset_free_poles
@@ -132,11 +132,12 @@ def _detection(config, loop, s) -> dict:
         # A camera fault may be caught at its camera or at the fusion; a valve fault only there.
         watched = {f"{fault.target}.{k}": v for k, v in camera_flags.get(fault.target, {}).items()}
         watched.update({f"fusion.{k}": v for k, v in fused.items()})
-        # The supervisor's own checks (the bladder's pressure) detect what the cameras cannot.
+        # The supervisor's own checks (the bladder's pressure) detect what the cameras cannot;
+        # its reasons are latched, so each detects when it rises.
         if "safety.reasons" in s:
             watched.update(
                 {
-                    f"safety.{r}": row
+                    f"safety.{r}": rises(row)
                     for r, row in zip(REASONS, s["safety.reasons"].values, strict=True)
                 }
             )

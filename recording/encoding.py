@@ -90,7 +90,10 @@ def _prepare_channel(channel: Channel) -> tuple[np.ndarray, list[str], list[list
         # astype + tolist gives Python float/bool objects in one vectorised step, the same values
         # float()/bool() would give, without per-message numpy scalar overhead.
         if kind == _STRING:
-            lists.append([str(value) for value in values.tolist()])
+            strings = values.tolist()
+            if not all(isinstance(value, str) for value in strings):
+                raise ValueError(f"topic {topic!r}: column {name!r} must hold strings")
+            lists.append(strings)
             continue
         dtype = bool if kind == _BOOLEAN else np.float64
         lists.append(values.astype(dtype, copy=False).tolist())

@@ -6,6 +6,7 @@ from maskless.analysis.detection_figures import (
     detection_latency_s,
     first_set_s,
     flag_figures,
+    rises,
     set_fraction,
 )
 
@@ -25,3 +26,9 @@ def test_first_set_from_a_time_and_the_fraction_set():
 def test_the_latency_is_the_earliest_flag_after_the_fault_starts():
     assert detection_latency_s(TIMES, {"a": A, "b": B}, start_s=1.0) == ("b", 1.5)
     assert detection_latency_s(TIMES, {"b": B}, start_s=3.5) == (None, None)
+
+
+def test_a_latched_flag_fires_where_it_rises():
+    flag = np.array([0, 1, 1, 0, 0, 1, 1, 1])
+    np.testing.assert_array_equal(rises(flag), [0, 1, 0, 0, 0, 1, 0, 0])
+    np.testing.assert_array_equal(rises(np.ones(3)), [1, 0, 0])

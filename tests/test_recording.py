@@ -31,6 +31,7 @@ from maskless.recording import (
     FUSION_TOPIC,
     HEAD_HEIGHT_TOPIC,
     REFERENCE_TOPIC,
+    SAFETY_TOPIC,
     Channel,
     RecordingWriter,
     TruncatedRecordingWarning,
@@ -969,3 +970,39 @@ def test_a_worker_whose_caller_goes_away_finishes_the_file_marked_as_cut(tmp_pat
         recording = read_recording(path)
     assert recording.truncated
     assert sum(len(m) for m in recording.messages.values()) == sum(c.times_ns.size for c in early)
+
+
+def safety_channel(states, reasons):
+    t = np.arange(len(states), dtype=np.int64)
+    return Channel(
+        SAFETY_TOPIC,
+        t,
+        {
+            "state": np.array(states, dtype=object),
+            "reasons": np.array(reasons, dtype=object),
+            "beam_hold": np.array([True, False][: len(states)] + [True] * (len(states) - 2)),
+            "estimated_head_height_m": np.zeros(len(states)),
+            "inlet_valve_current_a": np.zeros(len(states)),
+            "outlet_valve_current_a": np.zeros(len(states)),
+        },
+    )
+
+
+def test_string_fields_round_trip_as_json_strings(tmp_path):
+    # A quote, a backslash and a non-ASCII character survive, in both encoding paths (the NaN in
+    # the second file sends it through json.dumps).
+    reasons = ["", 'a "quoted", \\ reason', "détection"]
+    path = tmp_path / "safety.mcap"
+    write_recording(path, [safety_channel(["normal", "degraded", "holding"], reasons)])
+    _, read = read_recording(path).topic_arrays(SAFETY_TOPIC, "reasons")
+    assert list(read) == reasons
+    channel = safety_channel(["normal", "degraded", "holding"], reasons)
+    channel.columns["estimated_head_height_m"][1] = np.nan
+    write_recording(tmp_path / "nan.mcap", [channel])
+    _, states = read_recording(tmp_path / "nan.mcap").topic_arrays(SAFETY_TOPIC, "state")
+    assert list(states) == ["normal", "degraded", "holding"]
+
+
+def test_a_string_field_given_numbers_is_refused(tmp_path):
+    with pytest.raises(ValueError, match=r"/safety/status.*'state' must hold strings"):
+        write_recording(tmp_path / "bad.mcap", [safety_channel([1.0, 2.0, 3.0], ["", "", ""])])

@@ -49,4 +49,9 @@ def test_beam_times_are_counted_per_tick_against_the_truth():
 
 def test_the_safe_state_is_the_first_reason_latched_after_the_fault():
     assert time_to_safe_state_s(made_up_log(), 0.35) == ("camera_excluded", pytest.approx(0.25))
-    assert time_to_safe_state_s(made_up_log(), 0.95) == (None, None)
+    # Latched at 0.6 s and still latched: no answer to a fault at 0.75 s...
+    assert time_to_safe_state_s(made_up_log(), 0.75) == (None, None)
+    # ...but a reason that latches after it is.
+    log = made_up_log()
+    log.reasons[REASONS.index("pressure_jump"), 8:] = 1
+    assert time_to_safe_state_s(log, 0.75) == ("pressure_jump", pytest.approx(0.05))

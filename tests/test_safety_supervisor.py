@@ -1,5 +1,6 @@
 """The safety supervisor, tick by tick: each check latches its reason and takes its safe action."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -52,10 +53,11 @@ HEALTHY = {
 class Supervisor:
     """The supervisor built alone, stepped one tick at a time with the inputs given."""
 
-    def __init__(self, config=CONFIG):
+    def __init__(self, config=CONFIG, period_s=PERIOD_S):
+        self.period_s = period_s
         self.system = make_safety_supervisor(
             config,
-            period_s=PERIOD_S,
+            period_s=period_s,
             camera_count=2,
             head_height_limits_m=(LOW_M, HIGH_M),
             tolerance_m=TOLERANCE_M,
@@ -74,7 +76,7 @@ class Supervisor:
         for _ in range(ticks):
             update = self.system.EvalUniquePeriodicDiscreteUpdate(self.context)
             self.context.get_mutable_discrete_state().SetFrom(update)
-            self.context.SetTime(self.context.get_time() + PERIOD_S)
+            self.context.SetTime(self.context.get_time() + self.period_s)
 
     def out(self, name):
         return self.system.GetOutputPort(name).Eval(self.context)
@@ -284,8 +286,6 @@ def test_safety_states_names_the_state_and_the_reasons():
     ],
 )
 def test_a_limit_out_of_range_is_refused_by_name(field, value):
-    import dataclasses
-
     with pytest.raises(ConfigError, match=f"safety.{field}"):
         validate_safety(dataclasses.replace(CONFIG, **{field: value}), TOLERANCE_M)
 
@@ -309,3 +309,51 @@ def test_a_disagreement_ended_by_a_camera_left_out_lets_the_loop_go_on():
     s.tick(2, fusion_health=[2.0, 1.0, 0.0])
     s.tick(5, fusion_health=[1.0, 0.0, 0.0])  # the fusion left the wrong camera out
     assert s.latched() == {"camera_excluded"} and s.mode() == "pass"
+
+
+def test_a_non_finite_command_leaves_the_pressure_check_whole_after_a_reset():
+    for bad in ({"inlet_command_a": math.nan}, {"outlet_command_a": math.inf}):
+        s = Supervisor()
+        s.tick(25)
+        s.tick(**bad)
+        assert "non_finite_command" in s.latched()
+        s.tick(**{**HEALTHY, "reset": 1.0})
+        s.tick(reset=0.0)
+        s.tick(25)  # a still loop: nothing to latch
+        assert s.latched() == set(), bad
+        s.tick(bladder_gauge_pressure_pa=3000.0 + 2000.0)  # and a jump is still caught
+        assert "pressure_jump" in s.latched(), bad
+
+
+def test_a_reset_clears_only_what_passes_now():
+    s = Supervisor()
+    s.tick(3)
+    s.tick(bladder_gauge_pressure_pa=20_000.0, fusion_health=[1.0, 0.0, 0.0])
+    assert {"overpressure", "camera_excluded"} <= s.latched() and s.mode() == "vent"
+    s.tick(fusion_health=[2.0, 0.0, 0.0], reset=1.0)  # the pressure is still too high
+    assert "overpressure" in s.latched() and "camera_excluded" not in s.latched()
+    assert s.mode() == "vent" and s.valves() == (0.0, OUTLET_FULL_A)
+
+
+def test_no_pressure_jump_before_there_is_a_pace_to_compare_even_without_a_grace():
+    s = Supervisor(dataclasses.replace(CONFIG, start_grace_s=0.0))
+    s.tick(5)
+    assert s.latched() == set()
+
+
+def test_limits_that_are_no_whole_number_of_ticks_round_up():
+    period_s = 1 / 15
+    s = Supervisor(dataclasses.replace(CONFIG, beam_dwell_s=0.5), period_s=period_s)
+    s.tick(7)  # 0.5 s is 7.5 ticks: 8
+    assert s.out("beam_hold")[0] == 1.0
+    s.tick()
+    assert s.out("beam_hold")[0] == 0.0
+
+
+def test_the_average_starts_at_the_first_command_it_keeps():
+    s = Supervisor()
+    s.tick(inlet_command_a=INLET_FULL_A)  # fully open: not kept
+    s.tick(10, inlet_command_a=0.1)
+    s.tick(fusion_health=[0.0, 0.0, 0.0])
+    s.tick()
+    assert s.mode() == "hold" and s.valves()[0] == pytest.approx(0.1, rel=1e-12)

@@ -1,7 +1,8 @@
 """The safety supervisor between the controller and the valves, and the beam-hold signal.
 
 Each controller tick it checks what the loop knows (never the simulated truth) and latches a
-reason when a check fails; a latched reason stays until the ``reset`` input is raised at a tick.
+reason when a check fails; a latched reason stays until the ``reset`` input is raised at a tick
+while its check passes. Durations are counted in whole ticks, a limit rounded up.
 Each reason has its safe action (``SAFE_ACTIONS``):
 
 - ``camera_excluded`` (continue): the fusion uses fewer cameras than it has, but some (a camera's
@@ -9,10 +10,10 @@ Each reason has its safe action (``SAFE_ACTIONS``):
   holding the air would be no safer than a loop that still sees the head.
 - ``no_camera`` (hold): the fusion uses no camera.
 - ``cameras_disagree`` (hold): two cameras the fusion uses have disagreed for
-  ``disagreement_persist_s``, and nothing says which one is wrong. A camera's own checks usually
-  name it first (a biased one's frames are rejected within half a second) and the fusion leaves
-  it out: then the loop goes on with the other (``camera_excluded``). The beam is held from the
-  first tick of disagreement.
+  ``disagreement_persist_s``, and nothing says which one is wrong. A camera's own checks may name
+  it first (a silent or frozen one), and the fusion leaves it out: then the loop goes on with the
+  other (``camera_excluded``). A biased camera passes its checks, so its disagreement holds the
+  air. The beam is held from the first tick of disagreement.
 - ``estimate_uncertain`` (hold): the fused height's std is above its bound.
 - ``outside_travel`` (hold): a camera sees the head outside the bladder's travel, widened by
   ``travel_margin_m`` (or the estimate is not finite): no height the bladder can give.
@@ -281,20 +282,28 @@ def add_safety_supervisor(
     latched = {reason: Variable(f"latched_{reason}") for reason in REASONS}
     mode = Variable("mode")
     held_inlet, held_outlet = Variable("held_inlet_a"), Variable("held_outlet_a")
-    elapsed_s, full_inlet_s, inside_s = (
-        Variable(n) for n in ("elapsed_s", "full_inlet_s", "inside_s")
+    averaging = Variable("averaging")  # 1 once the held currents' average has its first command
+    # Durations as whole ticks: a sum of float periods drifts, and a limit that is no whole number
+    # of ticks is rounded up (0.5 s at 15 Hz: 8 ticks).
+    elapsed, full_inlet, inside, disagreeing = (
+        Variable(f"{n}_ticks") for n in ("elapsed", "full_inlet", "inside", "disagreeing")
     )
+
+    def ticks(limit_s: float) -> float:
+        return float(math.ceil(limit_s / period_s - 1e-9))
+
     beam_allowed = Variable("beam_allowed")
     last_pressure = Variable("last_gauge_pressure_pa")
     last_inlet, last_outlet = Variable("last_inlet_command_a"), Variable("last_outlet_command_a")
     last_pressure_step = Variable("last_pressure_step_pa")
     last_activity = Variable("last_command_activity_a")
-    disagree_s = Variable("disagree_s")  # how long the cameras have disagreed
     low, high = head_height_limits_m
     margin = config.travel_margin_m
     commands_finite = _commands_finite(inlet, outlet)
+    cleared = reset > 0.5
     # The commands' recent changes (A): this tick's, plus the earlier ones fading by 0.7 a tick (a
-    # change moves the pressure's pace at once, then for a few ticks as the bladder follows).
+    # change moves the pressure's pace at once, then for a few ticks as the bladder follows). Only
+    # finite commands are remembered, and a reset forgets them.
     command_activity = abs(inlet - last_inlet) + abs(outlet - last_outlet) + 0.7 * last_activity
     explained = (
         config.max_pressure_step_pa + config.pressure_per_current_pa_per_a * command_activity
@@ -303,12 +312,7 @@ def add_safety_supervisor(
         inlet, outlet, mode, held_inlet, held_outlet, commands_finite, outlet_saturation_a
     )
     at_full_inlet = inlet_out >= inlet_saturation_a
-
-    def reached(duration_s, limit_s):
-        # Half a tick of slack: durations are sums of ticks, and 10 x 0.1 is below 1.0.
-        return duration_s > limit_s - period_s / 2
-
-    watching = reached(elapsed_s, config.start_grace_s)
+    watching = elapsed >= ticks(config.start_grace_s)
     seen = tracks_used > 0.5
     failing = {
         "camera_excluded": logical_and(
@@ -317,7 +321,7 @@ def add_safety_supervisor(
         "no_camera": logical_and(watching, logical_not(seen)),
         "cameras_disagree": logical_and(
             logical_and(watching, disagreement > 0.5),
-            reached(disagree_s + period_s, config.disagreement_persist_s),
+            disagreeing + 1 >= ticks(config.disagreement_persist_s),
         ),
         "estimate_uncertain": logical_and(watching, uncertain > 0.5),
         "outside_travel": logical_and(
@@ -326,14 +330,15 @@ def add_safety_supervisor(
         ),
         "non_finite_command": logical_not(commands_finite),
         "inlet_full_too_long": logical_and(
-            at_full_inlet, reached(full_inlet_s + period_s, config.max_full_inlet_s)
+            at_full_inlet, full_inlet + 1 >= ticks(config.max_full_inlet_s)
         ),
         # The pressure's change from one tick to the next changes only when the loop changes its
-        # commands; not while the supervisor itself moves the air (holding or venting).
+        # commands; not while the supervisor itself moves the air (holding or venting), and from
+        # the third tick (the first two have no pressure, then no pace, to compare with).
         "pressure_jump": logical_and(
             logical_and(
                 logical_and(
-                    logical_and(mode < 0.5, watching),
+                    logical_and(mode < 0.5, logical_and(watching, elapsed >= 2)),
                     _within(estimated - reference, -tolerance_m, tolerance_m),
                 ),
                 _within(
@@ -359,46 +364,41 @@ def add_safety_supervisor(
         ),
         disagreement < 0.5,
     )
-    cleared = reset > 0.5
-    next_latched = [
-        if_then_else(cleared, 0.0, if_then_else(failing[r], 1.0, Expression(latched[r])))
-        for r in REASONS
-    ]
+    # A reset clears the reasons whose checks pass now; one still failing stays latched.
+    after_reset = {r: if_then_else(cleared, 0.0, Expression(latched[r])) for r in REASONS}
+    next_latched = [if_then_else(failing[r], 1.0, after_reset[r]) for r in REASONS]
 
     # Counts of 0/1 terms: a few nodes where a chain of ors of next_latched would repeat every
     # check (a SymbolicVectorSystem evaluates each expression whole).
-    def count(reasons, flags):
-        return sum(flags[r] for r in reasons)
-
     newly = {r: if_then_else(failing[r], 1.0, 0.0) for r in REASONS}
-    state_of = {r: Expression(latched[r]) for r in REASONS}
+
+    def latched_count(reasons):
+        return sum(after_reset[r] + newly[r] for r in reasons)
 
     def acting(action):
-        reasons = [r for r in REASONS if SAFE_ACTIONS[r] == action]
-        return count(reasons, state_of) + count(reasons, newly) > 0.5
+        return latched_count([r for r in REASONS if SAFE_ACTIONS[r] == action]) > 0.5
 
-    next_mode = if_then_else(
-        cleared, 0.0, if_then_else(acting(VENT), 2.0, if_then_else(acting(HOLD), 1.0, 0.0))
-    )
+    next_mode = if_then_else(acting(VENT), 2.0, if_then_else(acting(HOLD), 1.0, 0.0))
     # The held currents follow the commands that pass while nothing was latched and the inlet is
     # not fully open (the tick that first sees a fault still counts: its command was computed a
-    # tick before); the average starts at the first command (a fresh Context's are 0).
+    # tick before); the average starts at the first such command.
     keep = logical_and(
-        logical_and(count(REASONS, state_of) < 0.5, commands_finite), logical_not(at_full_inlet)
+        logical_and(sum(Expression(latched[r]) for r in REASONS) < 0.5, commands_finite),
+        logical_and(logical_not(at_full_inlet), logical_not(cleared)),
     )
     weight = if_then_else(
-        elapsed_s < period_s / 2, 1.0, 1.0 - math.exp(-period_s / config.hold_time_constant_s)
+        averaging < 0.5, 1.0, 1.0 - math.exp(-period_s / config.hold_time_constant_s)
     )
     next_held = [
         if_then_else(keep, held + weight * (command - held), Expression(held))
         for held, command in ((held_inlet, inlet), (held_outlet, outlet))
     ]
-    next_inside = if_then_else(on_target, inside_s + period_s, 0.0)
+    next_inside = if_then_else(on_target, inside + 1, 0.0)
     # The beam waits for a reset too: a latched reason holds it whatever the estimate says.
     next_allowed = if_then_else(
         logical_and(
-            logical_and(count(REASONS, state_of) + count(REASONS, newly) < 0.5, commands_finite),
-            logical_and(on_target, reached(inside_s + period_s, config.beam_dwell_s)),
+            logical_and(latched_count(REASONS) < 0.5, commands_finite),
+            logical_and(on_target, inside + 1 >= ticks(config.beam_dwell_s)),
         ),
         1.0,
         0.0,
@@ -408,21 +408,31 @@ def add_safety_supervisor(
     beam_hold = if_then_else(
         logical_and(beam_allowed > 0.5, logical_and(on_target, commands_finite)), 0.0, 1.0
     )
-    state = [
-        mode,
-        held_inlet,
-        held_outlet,
-        *latched.values(),
-        elapsed_s,
-        full_inlet_s,
-        inside_s,
-        beam_allowed,
-        last_pressure,
-        last_inlet,
-        last_outlet,
-        last_pressure_step,
-        last_activity,
-        disagree_s,
+    remembered = [
+        if_then_else(commands_finite, Expression(command), Expression(last))
+        for command, last in ((inlet, last_inlet), (outlet, last_outlet))
+    ]
+    next_activity = if_then_else(
+        cleared,
+        0.0,
+        if_then_else(commands_finite, command_activity, Expression(last_activity)),
+    )
+    state_and_next = [
+        (mode, next_mode),
+        (held_inlet, next_held[0]),
+        (held_outlet, next_held[1]),
+        *zip(latched.values(), next_latched, strict=True),
+        (averaging, if_then_else(keep, 1.0, Expression(averaging))),
+        (elapsed, elapsed + 1),
+        (full_inlet, if_then_else(at_full_inlet, full_inlet + 1, 0.0)),
+        (inside, next_inside),
+        (beam_allowed, next_allowed),
+        (last_pressure, Expression(pressure)),
+        (last_inlet, remembered[0]),
+        (last_outlet, remembered[1]),
+        (last_pressure_step, pressure - last_pressure),
+        (last_activity, next_activity),
+        (disagreeing, if_then_else(disagreement > 0.5, disagreeing + 1, 0.0)),
     ]
     return add_named_symbolic_system(
         builder,
@@ -444,22 +454,8 @@ def add_safety_supervisor(
             ("mode", [Expression(mode)]),
             ("beam_hold", [beam_hold]),
         ],
-        state=state,
-        dynamics=[
-            next_mode,
-            *next_held,
-            *next_latched,
-            elapsed_s + period_s,
-            if_then_else(at_full_inlet, full_inlet_s + period_s, 0.0),
-            next_inside,
-            next_allowed,
-            Expression(pressure),
-            Expression(inlet),
-            Expression(outlet),
-            pressure - last_pressure,
-            command_activity,
-            if_then_else(disagreement > 0.5, disagree_s + period_s, 0.0),
-        ],
+        state=[variable for variable, _ in state_and_next],
+        dynamics=[update for _, update in state_and_next],
         time_period=period_s,
     )
 

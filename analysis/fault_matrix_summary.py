@@ -57,33 +57,29 @@ def _worst(values) -> float | None:
     return float(np.max(values)) if len(values) else None
 
 
+def _spread(rows, key) -> dict:
+    values = _values(rows, key)
+    return {"median": _median(values), "worst": _worst(values)}
+
+
 def case_figures(rows: Sequence[dict]) -> dict:
     """One case's figures over its runs."""
     ran = [row for row in rows if not row["error"]]
-    detection = _values(ran, "detection_latency_s")
-    safe = _values(ran, "safe_state_latency_s")
-    p95 = _values(ran, "p95_abs_error_mm")
     return {
         "runs": len(rows),
         "errors": len(rows) - len(ran),
         "error_examples": sorted({row["error"] for row in rows if row["error"]})[:3],
-        "detected": len(detection),
-        "detection_latency_s": {"median": _median(detection), "worst": _worst(detection)},
-        "safe_state": len(safe),
+        "detected": len(_values(ran, "detection_latency_s")),
+        "detection_latency_s": _spread(ran, "detection_latency_s"),
+        "safe_state": len(_values(ran, "safe_state_latency_s")),
         "safe_state_reasons": sorted(
             {r["safe_state_reason"] for r in ran if r["safe_state_reason"]}
         ),
-        "safe_state_latency_s": {"median": _median(safe), "worst": _worst(safe)},
+        "safe_state_latency_s": _spread(ran, "safe_state_latency_s"),
         "worst_excursion_mm": _worst(_values(ran, "worst_excursion_mm")),
-        "p95_abs_error_mm": {"median": _median(p95), "worst": _worst(p95)},
-        "beam_on_while_off_target_fraction": {
-            "median": _median(_values(ran, "beam_on_while_off_target_fraction")),
-            "worst": _worst(_values(ran, "beam_on_while_off_target_fraction")),
-        },
-        "beam_held_while_on_target_fraction": {
-            "median": _median(_values(ran, "beam_held_while_on_target_fraction")),
-            "worst": _worst(_values(ran, "beam_held_while_on_target_fraction")),
-        },
+        "p95_abs_error_mm": _spread(ran, "p95_abs_error_mm"),
+        "beam_on_while_off_target_fraction": _spread(ran, "beam_on_while_off_target_fraction"),
+        "beam_held_while_on_target_fraction": _spread(ran, "beam_held_while_on_target_fraction"),
         "valve_currents_out_of_range": int(_values(ran, "valve_currents_out_of_range").sum()),
         "max_gauge_pressure_kpa": _worst(_values(ran, "max_gauge_pressure_kpa")),
     }

@@ -24,7 +24,6 @@ from pathlib import Path
 import numpy as np
 
 from maskless.analysis.fault_matrix_summary import CaseFaults, summarize_fault_matrix
-from maskless.analysis.safety_figures import time_to_safe_state_s
 from maskless.analysis.trial_table import write_trial_table
 from maskless.diagrams.output_folder import RunFolder
 from maskless.diagrams.process_pool import pool_results
@@ -178,17 +177,20 @@ def _judged(run, scenario: Scenario, start_s: float | None) -> dict:
     figures = {key: safety[key] for key in COLUMNS if key in safety}
     figures["p95_abs_error_mm"] = metrics["tracking"]["p95_abs_error_mm"]
     figures["max_gauge_pressure_kpa"] = safety.get("max_gauge_pressure_kpa")
-    detections = [
-        f for f in metrics["fault_detection"]["faults"].values() if f["detected_by"] is not None
-    ]
-    if detections:
-        first = min(detections, key=lambda f: f["start_s"] + f["latency_s"])
-        figures["detected_by"] = first["detected_by"]
-        figures["detection_latency_s"] = first["start_s"] + first["latency_s"] - start_s
+    # The summary times each fault from its own start; the case's first answer counts, from the
+    # case's first fault.
+    faults = metrics["fault_detection"]["faults"].values()
+    for what, latency_key, column, latency_column in (
+        ("detected_by", "latency_s", "detected_by", "detection_latency_s"),
+        ("safe_state_reason", "safe_state_latency_s", "safe_state_reason", "safe_state_latency_s"),
+    ):
+        answered = [f for f in faults if f[what] is not None]
+        if answered:
+            first = min(answered, key=lambda f, key=latency_key: f["start_s"] + f[key])
+            figures[column] = first[what]
+            figures[latency_column] = first["start_s"] + first[latency_key] - start_s
     times, head = s["head_height_m"].times_s, s["head_height_m"].values[0]
     if start_s is not None and start_s <= times[-1]:
-        reason, latency = time_to_safe_state_s(log, start_s)
-        figures["safe_state_reason"], figures["safe_state_latency_s"] = reason, latency
         k = int(np.searchsorted(times, start_s))
         figures["worst_excursion_mm"] = 1e3 * float(np.max(np.abs(head[k:] - head[k])))
     p = scenario.pneumatic

@@ -60,10 +60,12 @@ def summarize(run: "SimulationRun") -> dict:
     )
 
     detection = _detection(config, loop, s)
-    safety = _safety(config, s)
-    if safety is not None:
+    safety = None
+    if "safety.beam_hold" in s:
+        log = safety_log(s)
+        safety = _safety(config, log)
         for name, fault in detection["faults"].items():
-            reason, latency = time_to_safe_state_s(safety_log(s), config.faults[name].start_s)
+            reason, latency = time_to_safe_state_s(log, config.faults[name].start_s)
             fault["safe_state_reason"], fault["safe_state_latency_s"] = reason, latency
     paper = config.paper
     inlet = s["inlet_valve_current_a"].values[0]
@@ -177,14 +179,12 @@ def safety_log(s: dict) -> SafetyLog:
     )
 
 
-def _safety(config, s) -> dict | None:
-    """The supervisor's figures, or None for a loop without one."""
-    if "safety.beam_hold" not in s:
-        return None
+def _safety(config, log: SafetyLog) -> dict:
+    """The supervisor's figures."""
     return {
         "tolerance_mm": m_to_mm(config.metrics.tolerance_m),
         "max_gauge_pressure_limit_kpa": config.safety.max_gauge_pressure_pa / 1e3,
-        **safety_figures(safety_log(s), config.metrics.tolerance_m),
+        **safety_figures(log, config.metrics.tolerance_m),
     }
 
 

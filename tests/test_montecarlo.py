@@ -160,18 +160,23 @@ def test_one_row_per_trial_and_controller_with_the_draws_and_metrics(tmp_path):
     assert (tmp_path / "mc" / "population.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def local_cluster(distributed, tmp_path, workers: int, threads: int):
+    """A Dask cluster of worker processes, with its scratch folder in the test's, not /tmp."""
+    return distributed.LocalCluster(
+        n_workers=workers,
+        threads_per_worker=threads,
+        processes=True,
+        dashboard_address=None,
+        local_directory=str(tmp_path),
+    )
+
+
 def test_the_same_rows_in_process_on_a_local_pool_and_on_a_dask_cluster(tmp_path):
     distributed = pytest.importorskip("distributed")
     config = tiny_population(tmp_path)
     sweep(config, tmp_path / "one", workers=1)
     sweep(config, tmp_path / "pool", workers=2)
-    with distributed.LocalCluster(
-        n_workers=2,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        local_directory=str(tmp_path),  # its scratch folder, not the shared /tmp
-    ) as cluster:
+    with local_cluster(distributed, tmp_path, workers=2, threads=1) as cluster:
         summary = sweep(config, tmp_path / "dask", scheduler=cluster.scheduler_address)
     assert summary["sweep"]["engine"].startswith("dask tcp://")
     assert table_bytes(tmp_path / "pool") == table_bytes(tmp_path / "one")
@@ -385,13 +390,7 @@ def test_two_threads_of_one_dask_worker_give_the_same_rows(tmp_path):
     distributed = pytest.importorskip("distributed")
     config = tiny_population(tmp_path, trials=4)
     sweep(config, tmp_path / "one", workers=1)
-    with distributed.LocalCluster(
-        n_workers=1,
-        threads_per_worker=2,
-        processes=True,
-        dashboard_address=None,
-        local_directory=str(tmp_path),  # its scratch folder, not the shared /tmp
-    ) as cluster:
+    with local_cluster(distributed, tmp_path, workers=1, threads=2) as cluster:
         sweep(config, tmp_path / "threads", scheduler=cluster.scheduler_address)
     assert table_bytes(tmp_path / "threads") == table_bytes(tmp_path / "one")
 

@@ -190,23 +190,14 @@ def safety_states(mode: np.ndarray, reasons: np.ndarray) -> tuple[np.ndarray, np
     ``holding`` or ``venting``; the reasons are comma-separated, empty when none.
     """
     latched = np.asarray(reasons) > 0.5
-    names = np.array(
-        [",".join(r for r, on in zip(REASONS, column, strict=True) if on) for column in latched.T],
-        dtype=object,
-    )
+    # One name per distinct set of latched reasons (a run has a handful), not one per sample.
+    patterns, which = np.unique(latched.T, axis=0, return_inverse=True)
+    spelled = [",".join(r for r, on in zip(REASONS, p, strict=True) if on) for p in patterns]
+    names = np.array(spelled, dtype=object)[np.ravel(which).astype(int)]
     state = np.where(latched.any(axis=0), "degraded", "normal").astype(object)
     state[np.asarray(mode) > 0.5] = "holding"
     state[np.asarray(mode) > 1.5] = "venting"
     return state, names
-
-
-def _any(formulas):
-    """The disjunction of ``formulas``."""
-    formulas = list(formulas)
-    result = formulas[0]
-    for formula in formulas[1:]:
-        result = logical_or(result, formula)
-    return result
 
 
 def _within(value, low, high):

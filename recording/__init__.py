@@ -64,37 +64,46 @@ The package's modules: ``format`` (topics, schemas, the format version, version 
 whole). The names below are theirs, re-exported.
 """
 
-from maskless.recording.encoding import Channel
-from maskless.recording.format import (
-    BLADDER_PRESSURE_TOPIC,
-    CAMERA_MESSAGE_ENCODING,
-    COMMAND_TOPIC,
-    FUSION_TOPIC,
-    HEAD_HEIGHT_TOPIC,
-    MESSAGE_ENCODING,
-    REFERENCE_TOPIC,
-    SAFETY_TOPIC,
-    SCHEMA_ENCODING,
-    SCHEMA_VERSION,
-    current_name,
-    filter_estimate_topic,
-    schema_for_topic,
-    sensor_measurement_topic,
-)
-from maskless.recording.reading import (
-    Recording,
-    TruncatedRecordingWarning,
-    read_camera_frames,
-    read_recording,
-)
-from maskless.recording.writing import RecordingWriter as RecordingWriter
-from maskless.recording.writing import write_recording
-from maskless.recording.writing import write_recording_batches as write_recording_batches
-from maskless.sensor_names import is_sensor_name as is_sensor_name
+from maskless.lazy_exports import lazy_exports
 
-# The module's __all__ from before it became a package. The batch writer, its worker and the
-# sensor-name check (imported from here by diagrams.scenario) are public too, but outside __all__
-# as they were: each is imported "as" itself, which marks it as re-exported.
+# Public name -> the module that defines it. Imported on first use (PEP 562), so that a reader
+# of the format's topic names (`maskless identify` on a CSV record) does not load mcap, the
+# Foxglove schemas, protobuf and OpenCV, which only writing and reading a file need.
+_EXPORTS = {
+    "Channel": "maskless.recording.encoding",
+    **dict.fromkeys(
+        (
+            "BLADDER_PRESSURE_TOPIC",
+            "CAMERA_MESSAGE_ENCODING",
+            "COMMAND_TOPIC",
+            "FUSION_TOPIC",
+            "HEAD_HEIGHT_TOPIC",
+            "MESSAGE_ENCODING",
+            "REFERENCE_TOPIC",
+            "SAFETY_TOPIC",
+            "SCHEMA_ENCODING",
+            "SCHEMA_VERSION",
+            "current_name",
+            "filter_estimate_topic",
+            "schema_for_topic",
+            "sensor_measurement_topic",
+        ),
+        "maskless.recording.format",
+    ),
+    **dict.fromkeys(
+        ("Recording", "TruncatedRecordingWarning", "read_camera_frames", "read_recording"),
+        "maskless.recording.reading",
+    ),
+    **dict.fromkeys(
+        ("RecordingWriter", "write_recording", "write_recording_batches"),
+        "maskless.recording.writing",
+    ),
+    "is_sensor_name": "maskless.sensor_names",
+}
+
+# The module's __all__ from before it became a package. The batch writer, its writer class and
+# the sensor-name check (imported from here by diagrams.scenario) are public too, but outside
+# __all__ as they were.
 __all__ = [
     "BLADDER_PRESSURE_TOPIC",
     "CAMERA_MESSAGE_ENCODING",
@@ -117,3 +126,6 @@ __all__ = [
     "sensor_measurement_topic",
     "write_recording",
 ]
+
+
+__getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)

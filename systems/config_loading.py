@@ -15,7 +15,6 @@ from importlib import resources
 from pathlib import Path
 
 import yaml
-from pydrake.common.yaml import yaml_load_typed
 
 from maskless.errors import ConfigError, MasklessError, MissingFileError
 
@@ -336,6 +335,10 @@ def load_config(schema, filename: str | Path, defaults=None):
     if tree is None:
         tree = {}
     checked = _checked_tree(tree, schema, defaults, str(path))
+    # Here, not at the top: pydrake is slow to import, and `maskless identify` reads YAML
+    # (read_yaml) without ever loading a typed config.
+    from pydrake.common.yaml import yaml_load_typed
+
     data = yaml.dump(checked, Dumper=_TagWritingDumper)
     try:
         if defaults is None:

@@ -13,7 +13,7 @@ import numpy as np
 import scipy.signal
 
 from maskless.errors import MissingFileError, RecordError
-from maskless.recording import current_name, read_recording
+from maskless.recording import current_name
 
 
 def read_csv_signal(path: str | Path, column: str | None = None) -> np.ndarray:
@@ -114,6 +114,9 @@ def read_mcap_signals(
             raise RecordError(f"{path}: {topic_and_field!r} should be TOPIC:FIELD")
         # The recording is read under the current names, whatever version wrote it.
         wanted.append(current_name(topic, field))
+    # Here, not at the top: reading MCAP loads mcap, protobuf and OpenCV, which a CSV record skips.
+    from maskless.recording import read_recording
+
     try:
         recording = read_recording(path, topics={topic for topic, _ in wanted})
     except ValueError as error:

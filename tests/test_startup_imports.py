@@ -1,0 +1,94 @@
+"""What `maskless identify` loads before and while it fits a CSV record, and the lazy public names.
+
+The identify command reads CSV, fits and plots: Drake, the MCAP stack (mcap, protobuf and the
+Foxglove schemas) and OpenCV are for other commands and other records, so its start-up must not
+pay for them. Each check runs in a fresh interpreter, whose ``sys.modules`` starts empty.
+"""
+
+import importlib
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import maskless
+import maskless.recording
+
+# Libraries a CSV identification never uses (the plots import matplotlib in their own function).
+UNUSED_BY_CSV_IDENTIFY = ("pydrake", "mcap", "google.protobuf", "foxglove", "cv2")
+# Printed by the fresh interpreter after the code under test: which of those it loaded.
+_LOADED = (
+    "import json, sys; "
+    f"print(json.dumps([name for name in {[*UNUSED_BY_CSV_IDENTIFY, 'matplotlib']!r} "
+    "if any(m == name or m.startswith(name + '.') for m in sys.modules)]))"
+)
+
+
+def loaded_by(code: str) -> list[str]:
+    """The libraries of interest that ``code`` loads in a fresh interpreter."""
+    done = subprocess.run(
+        [sys.executable, "-c", f"{code}\n{_LOADED}"], capture_output=True, text=True, check=True
+    )
+    return json.loads(done.stdout.splitlines()[-1])
+
+
+@pytest.fixture(scope="module")
+def loaded_by_identify_import():
+    return loaded_by("import maskless.diagrams.commands.identify")
+
+
+@pytest.mark.parametrize("library", [*UNUSED_BY_CSV_IDENTIFY, "matplotlib"])
+def test_importing_the_identify_command_loads_no_unused_library(loaded_by_identify_import, library):
+    assert library not in loaded_by_identify_import
+
+
+def test_a_whole_csv_identification_loads_none_of_them(tmp_path):
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(400)
+    y = np.convolve(u, [0.0, 0.5, 0.3])[: u.size] + 0.1 * rng.standard_normal(u.size)
+    np.savetxt(tmp_path / "u.csv", u)
+    np.savetxt(tmp_path / "y.csv", y)
+    argv = ["identify", "--input", str(tmp_path / "u.csv"), "--output", str(tmp_path / "y.csv")]
+    argv += ["--ts", "0.1", "--out", str(tmp_path / "out")]
+    code = f"from maskless.diagrams.cli import main\nassert main({argv!r}) == 0"
+    loaded = loaded_by(code)
+    assert (tmp_path / "out" / "report.json").is_file()
+    # Where fork is unsafe the plots are drawn in this process: matplotlib is then expected.
+    assert not set(loaded) & set(UNUSED_BY_CSV_IDENTIFY)
+
+
+@pytest.mark.parametrize("name", maskless.__all__)
+def test_every_public_name_of_the_package_imports(name):
+    namespace = {}
+    exec(f"from maskless import {name}", namespace)
+    defining_module = importlib.import_module(maskless._EXPORTS[name])
+    assert namespace[name] is getattr(defining_module, name)
+
+
+# The recording package's public names: its __all__ and those re-exported "as" themselves.
+RECORDING_NAMES = [
+    *maskless.recording.__all__,
+    "RecordingWriter",
+    "write_recording_batches",
+    "is_sensor_name",
+]
+
+
+@pytest.mark.parametrize("name", RECORDING_NAMES)
+def test_every_public_name_of_the_recording_package_imports(name):
+    namespace = {}
+    exec(f"from maskless.recording import {name}", namespace)
+    submodules = ("format", "encoding", "reading", "writing")
+    defining = [importlib.import_module(f"maskless.recording.{s}") for s in submodules]
+    defining.append(importlib.import_module("maskless.sensor_names"))
+    assert any(namespace[name] is getattr(module, name, None) for module in defining)
+    assert name in dir(maskless.recording)
+
+
+def test_an_unknown_name_is_an_attribute_error_naming_it():
+    with pytest.raises(AttributeError, match="no attribute 'read_recordings'"):
+        maskless.recording.read_recordings  # noqa: B018
+    with pytest.raises(ImportError, match="simulat"):
+        exec("from maskless import simulat", {})

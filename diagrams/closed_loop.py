@@ -61,6 +61,7 @@ from maskless.systems.plant.pneumatic_plant import (
     equilibrium_state,
     set_pneumatic_parameters,
 )
+from maskless.systems.plumbing import remove_plumbing
 from maskless.systems.sensing.camera_error import add_camera_error
 from maskless.systems.sensing.depth_sensor import add_depth_sensor
 from maskless.systems.sensing.local_kalman_filter import add_local_kalman_filter
@@ -348,6 +349,7 @@ def export_and_log(
     for port_name, port in exported.items():
         builder.ExportOutput(port, port_name)
     if not record:
+        remove_plumbing(builder, kept=exported.values())
         return {}
     frame_periods_s = {
         f"{name}.{port}": 1.0 / config.cameras[name].frame_rate_hz
@@ -363,7 +365,9 @@ def export_and_log(
         for signal, port in exported.items()
         if record is True or signal in record
     }
-    return _add_loggers(builder, logged)
+    loggers = _add_loggers(builder, logged)
+    remove_plumbing(builder, kept=exported.values())
+    return loggers
 
 
 def build_closed_loop(

@@ -8,6 +8,7 @@ import pytest
 
 from maskless.analysis.identification.records import VALVE_CURRENTS_FIELDS, read_mcap_signals
 from maskless.diagrams.cli import main
+from maskless.diagrams.excitation_design import plan_excitation
 from maskless.diagrams.excitation_run import (
     ExcitationRequest,
     build_excitation_loop,
@@ -22,6 +23,7 @@ from maskless.systems.control.excitation import (
     MULTILEVEL_LEVELS,
     ExcitationSignal,
     multilevel_prbs,
+    prbs,
     uniform_white_noise,
 )
 from maskless.systems.control.valve_pair_excitation import outlet_seed
@@ -261,3 +263,19 @@ def test_multilevel_defaults_fit_the_pneumatic_plants_time_constants():
     levels = np.linspace(0.0, inlet.saturation_current_a, MULTILEVEL_LEVELS)
     assert np.diff(levels)[0] > 2 * inlet.hysteresis_fraction * inlet.current_span_a
     assert np.count_nonzero(levels < inlet.starting_current_a) == 4
+
+
+def test_independent_prbs_gives_the_outlet_the_inlets_sequence_half_a_period_later():
+    config = load_scenario()
+    request = ExcitationRequest(signal="prbs", valve_drive="independent", duration_s=60.0)
+    plan = plan_excitation(config, request)
+    # The default centre of each valve, mid-way between 60 and 165 mA, +- 50 mA.
+    inlet = prbs(0.050, 60.0, PERIOD_S, config.random_seed, offset=0.1125)
+    outlet = prbs(0.050, 60.0, PERIOD_S, config.random_seed, offset=0.1125, half_period_shift=True)
+    np.testing.assert_array_equal(plan.inlet.values, inlet.values)
+    np.testing.assert_array_equal(plan.outlet.values, outlet.values)
+    assert plan.designed_outlet is not None and plan.clipped == {"inlet": 0.0, "outlet": 0.0}
+    # Uncorrelated at the lags a model spans (here up to 10 s): a shorter shift would peak there.
+    a, b = inlet.values - inlet.values.mean(), outlet.values - outlet.values.mean()
+    cross = np.correlate(a, b, mode="full")[a.size - 1 - 150 : a.size + 150] / np.dot(a, a)
+    assert np.max(np.abs(cross)) < 0.15

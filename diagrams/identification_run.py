@@ -216,6 +216,11 @@ def read_record(
         else:
             ((input_times, u),) = read_mcap_signals(request.input, input_field)
             ((output_times, y),) = read_mcap_signals(output_path, output_field)
+        if u.ndim != 1 or y.ndim != 1:  # "TOPIC:FIELD,FIELD" reads columns; one each here
+            raise RecordError(
+                f"{request.input}: {input_field!r} and {output_field!r}: expected one field "
+                "each (one input, one output)"
+            )
         common, input_index, output_index = np.intersect1d(
             input_times, output_times, return_indices=True
         )

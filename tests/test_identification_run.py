@@ -391,3 +391,18 @@ def test_a_new_run_removes_the_model_files_an_earlier_run_left(tmp_path, capsys)
         "compare_pem_order3.png",
         "residuals_pem_order3.png",
     ]
+
+
+def test_two_input_columns_are_refused_in_one_line_until_multi_input_lands(tmp_path, capsys):
+    # read_mcap_signals reads "TOPIC:FIELD,FIELD" as columns; identification takes one input.
+    out = tmp_path / "ex"
+    assert (
+        main(["excite", "--valve-drive", "independent", "--duration", "5", "--out", str(out)]) == 0
+    )
+    capsys.readouterr()
+    both = "/controller/command:inlet_valve_current_a,outlet_valve_current_a"
+    args = ["identify", "--input", str(out / "run.mcap"), "--ts", repr(1 / 15), "--input-column"]
+    assert main([*args, both, "--out", str(tmp_path / "id")]) == 2
+    assert f"'{both}' and '/fusion/estimate:head_height_m': expected one field each" in (
+        capsys.readouterr().err
+    )

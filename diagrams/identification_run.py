@@ -60,7 +60,7 @@ CSV_UNITS = ("mA", "mm")
 # Where each unit came from, as the report says it.
 UNIT_GIVEN, UNIT_FROM_FIELD, UNIT_CSV_DEFAULT, UNIT_NOT_GIVEN = (
     "given",
-    "the recording's field name",
+    "from the recording's field name",
     "assumed: a CSV carries no units; the robot's CSV convention",
     "not given",
 )
@@ -426,7 +426,12 @@ def write_identification(identified: "IdentificationRun", out: str | Path) -> di
     convertible = all(unit in MODEL_FILE_UNITS for unit in units)
     if not convertible:
         report["warnings"].append(
-            f"the units (input {units[0]!r}, output {units[1]!r}) are not all among "
+            "the units ("
+            + ", ".join(
+                f"{name} {unit!r}" if unit else f"{name} not given"
+                for name, unit in zip(("input", "output"), units, strict=True)
+            )
+            + ") are not all among "
             f"{', '.join(MODEL_FILE_UNITS)}: the model files hold them as given, and the designs "
             "and plants, which work in SI, refuse them"
         )

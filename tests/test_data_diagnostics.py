@@ -17,7 +17,11 @@ import maskless
 from maskless.analysis.identification import data_diagnostics as dd
 from maskless.analysis.identification.fit_plots import plot_compare, plot_record
 from maskless.diagrams.cli import main
-from maskless.diagrams.identification_run import format_identification_report
+from maskless.diagrams.identification_run import (
+    IdentificationRequest,
+    format_identification_report,
+    identify_record,
+)
 from maskless.errors import ConfigError, RecordError
 
 SAMPLES = 2000
@@ -95,6 +99,17 @@ def test_trend_matches_numpy_least_squares_line():
     assert found.slope_per_sample == pytest.approx(slope, rel=1e-9)
     assert found.drift_share == pytest.approx(1 - residual.var() / signal.var(), rel=1e-9)
     assert found.offset_share == pytest.approx(signal.mean() ** 2 / np.mean(signal**2))
+
+
+def test_a_slow_stable_process_wanders_but_does_not_drift():
+    # Pole 0.995 (a 200-sample time constant) driven by white noise: over 3000 samples a line
+    # fits more than a quarter of its wandering, but its slope is within the wandering's own
+    # spread once the residuals' correlation is counted.
+    u = np.random.default_rng(1).standard_normal(3000)
+    slow = dd.trend(scipy.signal.lfilter([0.0, 1.0], [1.0, -0.995], u))
+    assert slow.drift_share > dd.DRIFT_SHARE and not slow.drifts
+    planted = dd.trend(scipy.signal.lfilter(B, A, u) + 0.003 * np.arange(3000))
+    assert planted.drift_share > dd.DRIFT_SHARE and planted.drifts
 
 
 def test_longest_hold_finds_the_planted_stretch():
@@ -236,9 +251,12 @@ def test_a_temperature_record_is_plotted_and_reported_in_its_own_unit(
     text = format_identification_report(report, out)
     assert "input in % (given), output in degC (given)" in text
     # A CSV without units says its mA and mm are assumed.
-    assert main(["identify", *args, "--ts", "1", "--out", str(tmp_path / "o2"), "--json"]) == 0
-    assumed = json.loads(capsys.readouterr().out)["record"]["units_from"]
-    assert assumed["output"].startswith("assumed")
+    request = IdentificationRequest(
+        input=tmp_path / "heater.csv", output=tmp_path / "temp.csv", ts=1.0
+    )
+    assumed = identify_record(request).report["record"]
+    assert assumed["units"] == {"input": "mA", "output": "mm"}
+    assert assumed["units_from"]["output"].startswith("assumed")
 
 
 def test_a_unit_that_is_not_one_line_of_text_is_refused():
@@ -299,3 +317,23 @@ def test_a_recordings_fields_carry_their_units():
         "/safety/status:valid",
     ]
     assert [_field_unit(field) for field in fields] == ["A", "m", "Pa", "m/s", ""]
+
+
+@pytest.mark.parametrize("order", [1, 2, 3, 4, 5, 6])
+def test_no_diagnostic_fires_on_clean_generated_systems(order):
+    # Orders 1-6, poles up to 0.995, coloured noise, white input: nothing planted.
+    poles = {
+        1: [0.995],
+        2: [0.9, 0.7],
+        3: [0.95, 0.6 + 0.3j, 0.6 - 0.3j],
+        4: [0.95, 0.9, 0.85, 0.8],
+        5: [0.99, 0.8, 0.5 + 0.4j, 0.5 - 0.4j, -0.3],
+        6: [0.97, 0.9, 0.7 + 0.2j, 0.7 - 0.2j, 0.3, -0.5],
+    }[order]
+    rng = np.random.default_rng(order)
+    a, c = np.real(np.poly(poles)), np.real(np.poly([0.5] * order))
+    u = rng.standard_normal(3000)
+    noise = scipy.signal.lfilter(c, a, 0.05 * rng.standard_normal(3000))
+    y = scipy.signal.lfilter([0.0, *np.full(order, 1 / order)], a, u) + noise
+    run = maskless.identify(u, y, TS, order=order)
+    assert run.report["diagnostics"]["warnings"] == []

@@ -19,7 +19,7 @@ report's verdict thresholds are, not derived values.
 from dataclasses import asdict, dataclass
 
 import numpy as np
-import scipy.signal
+import scipy.stats
 
 from maskless.errors import RecordError
 
@@ -46,6 +46,12 @@ WINDOWS_PER_DIRECTION = 10
 # The share of a signal's variance about its mean that a straight line must carry to be called a
 # drift (convention: a quarter, so the trend is a visible part of what the fit must explain).
 DRIFT_SHARE = 0.25
+# ... and how many standard errors its slope must stand from zero. A slow process wanders, and
+# over a record a few of its time constants long a line fits part of that wandering; so the
+# standard error counts the residuals' correlation, with the effective sample count
+# N (1 - r1) / (1 + r1) of lag-1 autocorrelation r1 (Santer et al., J. Geophys. Res. 105, 2000).
+# Three standard errors is a convention.
+DRIFT_T_STATISTIC = 3.0
 # The share of a signal's mean square that a constant must carry to be called an offset, for a
 # record fitted with --detrend none (convention, as DRIFT_SHARE).
 OFFSET_SHARE = 0.25
@@ -99,12 +105,20 @@ class Trend:
         slope_per_sample: its least-squares line's slope (its unit per sample).
         offset_share: mean² / mean square: the share of the signal's power that is constant.
         drift_share: the share of its variance about the mean that the line carries.
+        slope_t_statistic: the slope in standard errors, corrected for the residuals'
+            correlation (see ``DRIFT_T_STATISTIC``).
     """
 
     mean: float
     slope_per_sample: float
     offset_share: float
     drift_share: float
+    slope_t_statistic: float
+
+    @property
+    def drifts(self) -> bool:
+        """Whether the line is a drift: large (``DRIFT_SHARE``) and sure (``DRIFT_T_STATISTIC``)."""
+        return self.drift_share > DRIFT_SHARE and abs(self.slope_t_statistic) > DRIFT_T_STATISTIC
 
 
 @dataclass(frozen=True)
@@ -211,6 +225,7 @@ class DataDiagnostics:
                 "excitation_order_per_model_order": EXCITATION_ORDER_PER_MODEL_ORDER,
                 "persistent_share": PERSISTENT_SHARE,
                 "drift_share": DRIFT_SHARE,
+                "drift_t_statistic": DRIFT_T_STATISTIC,
                 "offset_share": OFFSET_SHARE,
                 "integrator_pole_distance": integrator_distance(self.estimation_samples),
                 "stuck_output_share": STUCK_OUTPUT_SHARE,
@@ -305,14 +320,23 @@ def trend(signal: np.ndarray) -> Trend:
     Args:
         signal: the samples as read (any unit), at least two.
     """
-    deviations = signal - signal.mean()
-    line = deviations - scipy.signal.detrend(signal, type="linear")
-    variance, mean_square = float(np.mean(deviations**2)), float(np.mean(signal**2))
+    mean_square = float(np.mean(signal**2))
+    offset_share = float(signal.mean() ** 2 / mean_square) if mean_square > 0 else 0.0
+    if np.ptp(signal) == 0:  # no line to fit (linregress would divide by zero)
+        return Trend(float(signal.mean()), 0.0, offset_share, 0.0, 0.0)
+    samples = np.arange(signal.size)
+    line = scipy.stats.linregress(samples, signal)
+    residuals = signal - (line.intercept + line.slope * samples)
+    lag_1 = float(np.dot(residuals[1:], residuals[:-1]) / max(np.dot(residuals, residuals), 1e-300))
+    # Fewer independent samples widen the standard error by sqrt(N / N_eff).
+    widening = np.sqrt((1 + lag_1) / max(1 - lag_1, np.finfo(float).eps))
+    standard_error = line.stderr * widening
     return Trend(
         mean=float(signal.mean()),
-        slope_per_sample=float(line[1] - line[0]) if signal.size > 1 else 0.0,
-        offset_share=float(signal.mean() ** 2 / mean_square) if mean_square > 0 else 0.0,
-        drift_share=float(np.mean(line**2) / variance) if variance > 0 else 0.0,
+        slope_per_sample=float(line.slope),
+        offset_share=offset_share,
+        drift_share=float(line.rvalue**2),
+        slope_t_statistic=float(line.slope / standard_error) if standard_error > 0 else np.inf,
     )
 
 
@@ -367,7 +391,7 @@ def diagnose_record(
         units: (input unit, output unit) as given, for the warnings ("" when not given).
     """
     input_trend, output_trend = trend(u), trend(y)
-    drifting = max(input_trend.drift_share, output_trend.drift_share) > DRIFT_SHARE
+    drifting = input_trend.drifts or output_trend.drifts
     offset = max(input_trend.offset_share, output_trend.offset_share) > OFFSET_SHARE
     suggested = None
     if drifting and detrend != "linear":
@@ -480,7 +504,7 @@ def _record_warnings(record: RecordDiagnostics) -> list[str]:
                 "its mean square"
             )
             for name, t, _, unit in signals
-            if (t.drift_share > DRIFT_SHARE if drift else t.offset_share > OFFSET_SHARE)
+            if (t.drifts if drift else t.offset_share > OFFSET_SHARE)
         )
         warnings.append(
             f"{found}, which --detrend {record.detrend} leaves in: use --detrend "

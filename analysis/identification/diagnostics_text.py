@@ -57,7 +57,8 @@ def format_diagnostics(report: dict) -> list[str]:
         "offset and drift: "
         + ", ".join(
             f"{name} {whole[f'{name}_trend']['offset_share']:.0%} constant, "
-            f"{whole[f'{name}_trend']['drift_share']:.0%} of its variance a line"
+            f"{whole[f'{name}_trend']['drift_share']:.0%} of its variance a line "
+            f"(slope t {whole[f'{name}_trend']['slope_t_statistic']:.1f})"
             for name in ("input", "output")
         )
         + (

@@ -270,18 +270,18 @@ def _units(
     request: IdentificationRequest, read: tuple[str | None, str | None]
 ) -> tuple[tuple[str, str], tuple[str, str]]:
     """(units, where each came from): the request's, else the record's, else the CSV's."""
-    units, origins = [], []
+    chosen = []
     for given, from_record, csv_default in zip(
         (request.input_unit, request.output_unit), read, CSV_UNITS, strict=True
     ):
         if given is not None:
-            units.append(given), origins.append(UNIT_GIVEN)
+            chosen.append((given, UNIT_GIVEN))
         elif from_record is None:
-            units.append(csv_default), origins.append(UNIT_CSV_DEFAULT)
+            chosen.append((csv_default, UNIT_CSV_DEFAULT))
         else:
-            units.append(from_record)
-            origins.append(UNIT_FROM_FIELD if from_record else UNIT_NOT_GIVEN)
-    return tuple(units), tuple(origins)
+            chosen.append((from_record, UNIT_FROM_FIELD if from_record else UNIT_NOT_GIVEN))
+    (input_unit, input_origin), (output_unit, output_origin) = chosen
+    return (input_unit, output_unit), (input_origin, output_origin)
 
 
 def minimum_samples(orders: list[int], method: str) -> int:
@@ -348,9 +348,8 @@ def identify_signals(
     label = request.label
     orders = list(request.orders)
     units, unit_origins = _units(request, units)
-    for signal, name, source, unit in zip(
-        (u, y), ("input", "output"), _sources(request), units, strict=True
-    ):
+    sources = _sources(request)
+    for signal, name, source, unit in zip((u, y), ("input", "output"), sources, units, strict=True):
         refuse_constant(signal, name, source, unit)
     estimation_slice = parse_range(request.estimation, y.size, label("estimation"))
     validation_slice = parse_range(request.validation, y.size, label("validation"))
@@ -368,7 +367,7 @@ def identify_signals(
         # from its second sample): a constant output leaves them undefined.
         if is_constant(y[part][1:]):
             raise RecordError(
-                f"{flag} selects samples {part.start}:{part.stop} of {request.output or 'y'}, "
+                f"{flag} selects samples {part.start}:{part.stop} of {sources[1]}, "
                 "where the output is constant: no fit is defined on it"
             )
     offsets = detrend(u, y, request.detrend)

@@ -337,3 +337,15 @@ def test_no_diagnostic_fires_on_clean_generated_systems(order):
     y = scipy.signal.lfilter([0.0, *np.full(order, 1 / order)], a, u) + noise
     run = maskless.identify(u, y, TS, order=order)
     assert run.report["diagnostics"]["warnings"] == []
+
+
+def test_an_input_held_over_half_the_record_is_reported_and_a_prbs_bit_is_not():
+    u, y = clean_record()
+    held = u.copy()
+    held[:1100] = 0.25  # 55 % of the record
+    (warning,) = dd._record_warnings(dd.diagnose_record(held, y, "mean", ("V", "K")))
+    assert (
+        warning == "the input is stuck at 0.25 V for 1100 samples (55% of the record) from sample 0"
+    )
+    prbs = np.repeat(np.sign(np.random.default_rng(9).standard_normal(SAMPLES // 50)), 50)
+    assert dd._record_warnings(dd.diagnose_record(prbs, y, "mean")) == []

@@ -17,7 +17,13 @@ import numpy as np
 import yaml
 
 from maskless.analysis.identification import report as identification_report
-from maskless.analysis.identification.fit_plots import plot_compare, plot_residuals
+from maskless.analysis.identification.data_diagnostics import (
+    diagnose_record,
+    is_constant,
+    refuse_constant,
+)
+from maskless.analysis.identification.diagnostics_text import format_diagnostics
+from maskless.analysis.identification.fit_plots import plot_compare, plot_record, plot_residuals
 from maskless.analysis.identification.model_file import (
     MODEL_FILE_UNITS,
     model_file_contents,
@@ -46,8 +52,20 @@ DEFAULT_MCAP_OUTPUT = f"{FUSION_TOPIC}:head_height_m"
 DETREND_MODES = ("mean", "linear", "none")
 # Records at least this long report the optimiser's progress on stderr.
 _PROGRESS_MIN_SAMPLES = 50_000
-# A maskless recording's field names end in their SI unit.
-_FIELD_UNITS = {"_a": "A", "_m": "m"}
+# A maskless recording's field names end in their SI unit (longest suffix first: "_m_s" is m/s).
+_FIELD_UNITS = {"_m_s": "m/s", "_pa": "Pa", "_a": "A", "_m": "m"}
+# A CSV carries no units: the robot's CSV convention (valve current in mA, head distance in mm,
+# as the authors' record) is assumed unless --input-unit/--output-unit say otherwise.
+CSV_UNITS = ("mA", "mm")
+# Where each unit came from, as the report says it.
+UNIT_GIVEN, UNIT_FROM_FIELD, UNIT_CSV_DEFAULT, UNIT_NOT_GIVEN = (
+    "given",
+    "from the recording's field name",
+    "assumed: a CSV carries no units; the robot's CSV convention",
+    "not given",
+)
+# A unit string is shown as given, on one line of a report or a plot's label.
+_UNIT_MAX_CHARS = 32
 # How far --ts may be from a recording's own sample period before it is refused.
 _TS_TOLERANCE = 0.01
 
@@ -71,8 +89,10 @@ class IdentificationRequest(LabelledRequest):
             trend, or "none".
         k_step: also report the K-step-ahead prediction fit; None for none.
         estimate_initial_state: estimate x(0) with the model (else fix it at zero).
-        input_unit: the input's unit (m, mm, A, mA); None for mA (CSV) or the field's unit.
-        output_unit: likewise for the output (None: mm for CSV).
+        input_unit: the input's unit, any string (e.g. "mA", "degC", "V"), shown as given; None
+            for mA (CSV, assumed) or the MCAP field's unit. Only m, mm, A and mA convert to
+            the SI a design loads (``MODEL_FILE_UNITS``).
+        output_unit: likewise for the output (None: mm for CSV, assumed).
         labels: see ``LabelledRequest``.
     """
 
@@ -117,9 +137,15 @@ class IdentificationRequest(LabelledRequest):
             )
         for name in ("input_unit", "output_unit"):
             unit = getattr(self, name)
-            if unit is not None and unit not in MODEL_FILE_UNITS:
+            if unit is not None and (
+                not isinstance(unit, str)
+                or not unit.strip()
+                or not unit.isprintable()
+                or len(unit) > _UNIT_MAX_CHARS
+            ):
                 raise ConfigError(
-                    f"{label(name)} {unit!r}: expected one of {', '.join(MODEL_FILE_UNITS)}"
+                    f"{label(name)} {unit!r}: expected a unit, printable text of 1 to "
+                    f"{_UNIT_MAX_CHARS} characters (e.g. mA, mm, degC)"
                 )
         if self.k_step is not None and self.k_step < 1:
             raise ConfigError(f"{label('k_step')} {self.k_step}: expected a positive integer")
@@ -135,7 +161,8 @@ class IdentificationRun:
         fitted_models: one per order, in the request's order.
         parts: the detrended estimation and validation parts.
         offsets: what detrending removed (and the detrended record).
-        units: (input unit, output unit).
+        units: (input unit, output unit), as given or read.
+        signals: (input, output) of the whole record as read, before detrending.
     """
 
     request: IdentificationRequest
@@ -144,6 +171,7 @@ class IdentificationRun:
     parts: list[Part]
     offsets: Detrended
     units: tuple[str, str]
+    signals: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def model(self) -> LinearModel:
@@ -162,16 +190,17 @@ class IdentificationRun:
 
 
 def _field_unit(topic_and_field: str) -> str:
+    """The unit a maskless field's name ends in; "" (not given) for a name without one."""
     for suffix, unit in _FIELD_UNITS.items():
         if topic_and_field.endswith(suffix):
             return unit
-    return "unknown"
+    return ""
 
 
 def read_record(
     request: IdentificationRequest,
-) -> tuple[np.ndarray, np.ndarray, tuple[str, str]]:
-    """The input and output records and their units.
+) -> tuple[np.ndarray, np.ndarray, tuple[str | None, str | None]]:
+    """The input and output records and their units (None: a CSV, which carries none).
 
     Records that cannot be used are refused with the file named.
     """
@@ -221,7 +250,43 @@ def read_record(
             f"{request.input} has {u.size} values but {request.output} has {y.size}; expected one "
             "output per input"
         )
-    return u, y, ("mA", "mm")
+    return u, y, (None, None)
+
+
+def _sources(request: IdentificationRequest) -> tuple[str, str]:
+    """Where the input and output came from, as messages name them."""
+    if request.input is None:
+        return "u", "y"
+    output = request.output or request.input
+    if request.input.suffix == ".mcap" or output.suffix == ".mcap":
+        fields = (
+            request.input_column or DEFAULT_MCAP_INPUT,
+            request.output_column or DEFAULT_MCAP_OUTPUT,
+        )
+        return f"{request.input}:{fields[0]}", f"{output}:{fields[1]}"
+    columns = (request.input_column, request.output_column)
+    return tuple(
+        f"{path} column {column}" if column is not None else str(path)
+        for path, column in zip((request.input, output), columns, strict=True)
+    )
+
+
+def _units(
+    request: IdentificationRequest, read: tuple[str | None, str | None]
+) -> tuple[tuple[str, str], tuple[str, str]]:
+    """(units, where each came from): the request's, else the record's, else the CSV's."""
+    chosen = []
+    for given, from_record, csv_default in zip(
+        (request.input_unit, request.output_unit), read, CSV_UNITS, strict=True
+    ):
+        if given is not None:
+            chosen.append((given, UNIT_GIVEN))
+        elif from_record is None:
+            chosen.append((csv_default, UNIT_CSV_DEFAULT))
+        else:
+            chosen.append((from_record, UNIT_FROM_FIELD if from_record else UNIT_NOT_GIVEN))
+    (input_unit, input_origin), (output_unit, output_origin) = chosen
+    return (input_unit, output_unit), (input_origin, output_origin)
 
 
 def minimum_samples(orders: list[int], method: str) -> int:
@@ -276,15 +341,21 @@ def identify(
 
 
 def identify_signals(
-    u: np.ndarray, y: np.ndarray, request: IdentificationRequest, units: tuple[str, str]
+    u: np.ndarray,
+    y: np.ndarray,
+    request: IdentificationRequest,
+    units: tuple[str | None, str | None],
 ) -> "IdentificationRun":
-    """``identify_record`` on signals already read (``units``: as read, before the request's)."""
+    """``identify_record`` on signals already read.
+
+    ``units``: as read, before the request's ("" not given; None: a CSV's, which carries none).
+    """
     label = request.label
     orders = list(request.orders)
-    units = (request.input_unit or units[0], request.output_unit or units[1])
-    if np.ptp(u) == 0:
-        source = request.input or "u"
-        raise RecordError(f"{source}: the input is constant, so it explains nothing to fit")
+    units, unit_origins = _units(request, units)
+    sources = _sources(request)
+    for signal, name, source, unit in zip((u, y), ("input", "output"), sources, units, strict=True):
+        refuse_constant(signal, name, source, unit)
     estimation_slice = parse_range(request.estimation, y.size, label("estimation"))
     validation_slice = parse_range(request.validation, y.size, label("validation"))
     needed = minimum_samples(orders, request.method)
@@ -299,9 +370,9 @@ def identify_signals(
             raise RecordError(f"{label('k_step')} {request.k_step}: longer than the {flag} part")
         # Every fit figure divides by the output's spread over the part (the naive baseline's
         # from its second sample): a constant output leaves them undefined.
-        if np.ptp(y[part][1:]) == 0:
+        if is_constant(y[part][1:]):
             raise RecordError(
-                f"{flag} selects samples {part.start}:{part.stop} of {request.output or 'y'}, "
+                f"{flag} selects samples {part.start}:{part.stop} of {sources[1]}, "
                 "where the output is constant: no fit is defined on it"
             )
     offsets = detrend(u, y, request.detrend)
@@ -327,6 +398,7 @@ def identify_signals(
         progress=report_progress if long_record else None,
         k_step=request.k_step,
         overlap=overlap,
+        record_diagnostics=diagnose_record(u, y, request.detrend, units),
     )
     report["record"] = {
         "samples": int(y.size),
@@ -336,8 +408,9 @@ def identify_signals(
         "input_offset": offsets.input_offset,
         "output_offset": offsets.output_offset,
         "units": {"input": units[0], "output": units[1]},
+        "units_from": {"input": unit_origins[0], "output": unit_origins[1]},
     }
-    return IdentificationRun(request, report, fitted_models, parts, offsets, units)
+    return IdentificationRun(request, report, fitted_models, parts, offsets, units, (u, y))
 
 
 def identify_to_files(request: IdentificationRequest, out: str | Path) -> dict:
@@ -346,16 +419,36 @@ def identify_to_files(request: IdentificationRequest, out: str | Path) -> dict:
 
 
 def write_identification(identified: "IdentificationRun", out: str | Path) -> dict:
-    """Writes OUT/report.json, one model file per order and the compare and residual plots.
+    """Writes OUT/report.json, one model file per order, and the record, compare, residual plots.
 
-    The plots are drawn on the second core meanwhile. Returns the report with each model's file
-    named.
+    The record plot is record.png; the others are one per model. The plots are drawn on the
+    second core meanwhile. Returns the report with each model's file named.
     """
     fitted_models, parts, report = identified.fitted_models, identified.parts, identified.report
     offsets, units, request = identified.offsets, identified.units, identified.request
     out = output_folder(out)
+    convertible = all(unit in MODEL_FILE_UNITS for unit in units)
+    if not convertible:
+        report["warnings"].append(
+            "the units ("
+            + ", ".join(
+                f"{name} {unit!r}" if unit else f"{name} not given"
+                for name, unit in zip(("input", "output"), units, strict=True)
+            )
+            + ") are not all among "
+            f"{', '.join(MODEL_FILE_UNITS)}: the model files hold them as given, and the designs "
+            "and plants, which work in SI, refuse them"
+        )
 
     def plots():
+        if identified.signals is not None:
+            plot_record(
+                out / "record.png",
+                *identified.signals,
+                request.ts,
+                units,
+                report["diagnostics"]["record"],
+            )
         for fitted in fitted_models:
             stem = f"{fitted.method}_order{fitted.model.order}"
             plot_compare(out / f"compare_{stem}.png", fitted, parts, request.ts, units[1])
@@ -378,8 +471,10 @@ def write_identification(identified: "IdentificationRun", out: str | Path) -> di
             verdict=entry["verdict"],
         )
         path = out / f"model_{fitted.method}_order{fitted.model.order}.yaml"
-        # Read back as `--plant identified:` would, so no run writes a file the loader refuses.
-        model_from_contents(contents, str(path))
+        # Read back as `--plant identified:` would, so no run writes a file the loader refuses
+        # (units it cannot convert to SI are named in the warnings above instead).
+        if convertible:
+            model_from_contents(contents, str(path))
         path.write_text(yaml.safe_dump(contents, sort_keys=False))
         entry["model_file"] = str(path)
     (out / "report.json").write_text(json.dumps(report, indent=1))
@@ -411,7 +506,7 @@ def remove_stale_outputs(out: Path, stems: list[str]) -> list[str]:
 
 def format_identification_report(report: dict, out: str | Path) -> str:
     """The report as lines a person reads."""
-    lines = []
+    lines = format_diagnostics(report)
     for model in report["models"]:
         stability = "stable" if model["stable"] else "UNSTABLE"
         lines.append(

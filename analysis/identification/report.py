@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from maskless.analysis.identification import data_diagnostics
 from maskless.analysis.identification.fit_metrics import evaluate_fit, fit_percent
 from maskless.analysis.identification.innovations_model import InnovationsModel
 from maskless.analysis.identification.prediction_error import (
@@ -317,6 +318,7 @@ def identify(
     progress: Callable[[int, float], None] | None = None,
     k_step: int | None = None,
     overlap: bool = False,
+    record_diagnostics: data_diagnostics.RecordDiagnostics | None = None,
 ) -> tuple[dict, list[FittedModel]]:
     """Fits each order and builds the report (the JSON of `maskless identify`).
 
@@ -332,6 +334,8 @@ def identify(
         k_step: k for the additional k-step-ahead fit; None for none.
         overlap: the validation part shares samples with the estimation part; the report and
             the verdict then say that the validation figures are not a holdout.
+        record_diagnostics: the whole record's diagnostics (offsets, drift, holds, clipping),
+            reported and warned with the parts' own (``data_diagnostics.diagnose``).
     """
     parts = [estimation, validation]
     entries, fitted_models, baselines = [], [], []
@@ -385,6 +389,11 @@ def identify(
             "the validation part overlaps the estimation part: its figures are not a holdout "
             "and flatter the models"
         )
+    # Data diagnostics (issue 14): the excitation, the fitted poles near 1, the record's own.
+    diagnostics = data_diagnostics.diagnose(
+        estimation.u, {m.model.order: m.model.poles() for m in fitted_models}, record_diagnostics
+    )
+    warnings += diagnostics.warnings
     initial = "estimated" if estimate_initial_state and method != "arx" else "zero"
     report = {
         "horizons": {
@@ -405,6 +414,7 @@ def identify(
         "models": entries,
         "baselines": {"naive_last_value": naive, "per_model": baselines},
         "warnings": warnings,
+        "diagnostics": diagnostics.as_dict(),
         "verdict": best["verdict"] + (f" Warning: {warnings[0]}." if warnings else ""),
     }
     return report, fitted_models

@@ -35,6 +35,8 @@ FLAG_OF_FIELD = {
     "validation": "--validation",
     "detrend": "--detrend",
     "k_step": "--k-step",
+    "input_unit": "--input-unit",
+    "output_unit": "--output-unit",
 }
 
 
@@ -116,14 +118,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--input-unit",
         default=None,
-        choices=MODEL_FILE_UNITS,
-        help="unit of the input: m, mm, A or mA (default mA for CSV, the field's unit for MCAP)",
+        metavar="UNIT",
+        help="unit of the input, any text, shown as given (default mA for CSV, the field's unit "
+        f"for MCAP); only {', '.join(MODEL_FILE_UNITS)} convert to the SI a design loads",
     )
     parser.add_argument(
         "--output-unit",
         default=None,
-        choices=MODEL_FILE_UNITS,
-        help="unit of the output (default mm for CSV, the field's unit for MCAP)",
+        metavar="UNIT",
+        help="unit of the output, e.g. mm or degC (default mm for CSV, the field's unit for MCAP)",
     )
     add_out_argument(parser, "identification", "the report, models and plots")
     parser.add_argument("--json", action="store_true", help="print report.json to stdout")

@@ -62,6 +62,11 @@ def impulse_response(denominator: np.ndarray, samples: int) -> np.ndarray:
     return response
 
 
+def delayed_copies(signal: np.ndarray, delays) -> list[np.ndarray]:
+    """``signal`` delayed by each of ``delays`` samples (zeros shifted in), as long as it."""
+    return [np.concatenate([np.zeros(d), signal[: signal.size - d]]) for d in delays]
+
+
 @dataclass(frozen=True)
 class InnovationsModel:
     """An innovations-form model as the estimators parameterise it.
@@ -178,17 +183,16 @@ class InnovationsModel:
             horizon: "one_step" fits the one-step prediction, "simulation" the simulated output.
         """
         if horizon == "one_step":
+            denominator = np.concatenate([[1.0], self.c])
             used = samples_before_growth(self.predictor_poles(), y.size)
-            u, y = u[:used], y[:used]
-            no_signal = np.zeros_like(y, dtype=float)
-            base = self.predict(u, y, np.zeros(self.order))
-            columns = [self.predict(no_signal, no_signal, x0) for x0 in np.eye(self.order)]
+            base = self.predict(u[:used], y[:used], np.zeros(self.order))
         elif horizon == "simulation":
+            denominator = np.concatenate([[1.0], self.a])
             used = samples_before_growth(self.poles(), y.size)
-            u, y = u[:used], y[:used]
-            base = self.simulate(u, np.zeros(self.order))
-            columns = [self.free_response(used, x0) for x0 in np.eye(self.order)]
+            base = self.simulate(u[:used], np.zeros(self.order))
         else:
             raise ValueError(f"horizon = {horizon!r}: expected 'one_step' or 'simulation'")
-        solution, *_ = np.linalg.lstsq(np.column_stack(columns), y - base, rcond=None)
+        # x0_j enters the filter's output as an impulse at sample j.
+        columns = delayed_copies(impulse_response(denominator, used), range(self.order))
+        solution, *_ = np.linalg.lstsq(np.column_stack(columns), y[:used] - base, rcond=None)
         return solution

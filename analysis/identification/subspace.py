@@ -31,6 +31,7 @@ import scipy.signal
 
 from maskless.analysis.identification.innovations_model import (
     InnovationsModel,
+    delayed_copies,
     impulse_response,
     samples_before_growth,
 )
@@ -243,10 +244,9 @@ def _input_gain_and_initial_state(u, y, a, estimate_initial_state: bool):
     denominator = np.concatenate([[1.0], a])
     used = samples_before_growth(np.roots(denominator), y.size)
     through_a = scipy.signal.lfilter([1.0], denominator, u[:used])
-    columns = [np.concatenate([np.zeros(j), through_a[: used - j]]) for j in range(1, order + 1)]
+    columns = delayed_copies(through_a, range(1, order + 1))
     if estimate_initial_state:
-        response = impulse_response(denominator, used)
-        columns += [np.concatenate([np.zeros(j), response[: used - j]]) for j in range(order)]
+        columns += delayed_copies(impulse_response(denominator, used), range(order))
     solution, *_ = np.linalg.lstsq(np.column_stack(columns), y[:used], rcond=None)
     x0 = solution[order:] if estimate_initial_state else np.zeros(order)
     return solution[:order], x0

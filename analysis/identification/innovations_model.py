@@ -46,8 +46,7 @@ def impulse_response(denominator: np.ndarray, samples: int) -> np.ndarray:
     """The impulse response of 1 / D(q) (D = ``denominator``, leading 1) over ``samples``.
 
     For a stable D it is filtered only until it has decayed below 1e-16 of its start and is zero
-    after: filtering on would crawl through subnormal numbers, which cost ten times a normal
-    sample here.
+    after: filtering on would crawl through subnormal numbers, which are slow to compute.
     """
     largest = float(np.max(np.abs(np.roots(denominator)), initial=0.0))
     span = samples

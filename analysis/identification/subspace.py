@@ -151,7 +151,7 @@ def _hankel_gram(u, y, longest: int, future: int) -> tuple[np.ndarray, int]:
     Past rows run oldest to newest, so the newest p of them serve any past horizon p <= P. Row r
     is a signal from sample offset o_r, so entry (r, s) is a sum of lagged products over a window,
     Σ_c a[o_r + c] b[o_s + c], read from the running sums of a[t] b[t + o_s - o_r]: no BLAS call,
-    whose threads, on a busy machine, made the 80-row product take thirty times its usual time.
+    whose threads, on a busy machine, made the 80-row product D Dᵀ many times slower.
     """
     columns = y.size - longest - future + 1
     span = longest + future

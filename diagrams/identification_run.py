@@ -37,7 +37,7 @@ from maskless.analysis.identification.records import (
     read_mcap_signals,
 )
 from maskless.analysis.identification.report import METHODS, FittedModel, Part
-from maskless.analysis.identification.subspace import default_horizon
+from maskless.analysis.identification.subspace import minimum_samples as subspace_minimum
 from maskless.diagrams.background import BackgroundTask
 from maskless.diagrams.output_folder import output_folder
 from maskless.diagrams.request_labels import LabelledRequest
@@ -292,7 +292,7 @@ def _units(
 def minimum_samples(orders: list[int], method: str) -> int:
     """The fewest samples a part needs for the largest order (N4SID's Hankel matrices need more)."""
     largest = max(orders)
-    return 12 * default_horizon(largest) if method == "n4sid" else 10 * largest
+    return subspace_minimum(largest) if method == "n4sid" else 10 * largest
 
 
 def identify_record(request: IdentificationRequest) -> "IdentificationRun":

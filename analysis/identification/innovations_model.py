@@ -17,12 +17,53 @@ toolkit's ``LinearModel`` (``linear_model``): ``report.FittedModel.model`` and t
 `maskless identify` writes; its poles, stability and DC gain are read there.
 """
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.signal
 
 from maskless.systems.linear_model import LinearModel
+
+# How far the response to a unit initial state may grow before an x(0) fit stops using later
+# samples: a millionfold keeps the columns of its least squares finite and well scaled, and is
+# far beyond what a stable model's transient reaches.
+_INITIAL_STATE_GROWTH_LIMIT = 1e6
+
+
+def samples_before_growth(poles: np.ndarray, samples: int) -> int:
+    """How many of ``samples`` a response with ``poles`` takes to grow a millionfold.
+
+    All of them when no pole lies outside the unit circle; at least one.
+    """
+    largest = float(np.max(np.abs(poles), initial=0.0))
+    if largest <= 1.0:
+        return samples
+    return max(1, min(samples, int(math.log(_INITIAL_STATE_GROWTH_LIMIT) / math.log(largest))))
+
+
+def impulse_response(denominator: np.ndarray, samples: int) -> np.ndarray:
+    """The impulse response of 1 / D(q) (D = ``denominator``, leading 1) over ``samples``.
+
+    For a stable D it is filtered only until it has decayed below 1e-16 of its start and is zero
+    after: filtering on would crawl through subnormal numbers, which are slow to compute.
+    """
+    largest = float(np.max(np.abs(np.roots(denominator)), initial=0.0))
+    span = samples
+    if largest < 1.0:
+        # Twice the pure decay time, plus the order, covers repeated roots' polynomial factor.
+        decay = math.log(1e-16) / math.log(largest) if largest > 0.0 else 1.0
+        span = min(samples, 2 * math.ceil(decay) + denominator.size)
+    impulse = np.zeros(span)
+    impulse[0] = 1.0
+    response = np.zeros(samples)
+    response[:span] = scipy.signal.lfilter([1.0], denominator, impulse)
+    return response
+
+
+def delayed_copies(signal: np.ndarray, delays) -> list[np.ndarray]:
+    """``signal`` delayed by each of ``delays`` samples (zeros shifted in), as long as it."""
+    return [np.concatenate([np.zeros(d), signal[: signal.size - d]]) for d in delays]
 
 
 @dataclass(frozen=True)
@@ -77,6 +118,10 @@ class InnovationsModel:
             innovations_variance=innovations_variance,
         )
 
+    def poles(self) -> np.ndarray:
+        """Roots of A(z), the system's poles."""
+        return np.roots(np.concatenate([[1.0], self.a]))
+
     def predictor_poles(self) -> np.ndarray:
         """Eigenvalues of A - K C (roots of C(z)); the predictor is stable when they are inside."""
         return np.roots(np.concatenate([[1.0], self.c]))
@@ -126,22 +171,27 @@ class InnovationsModel:
     def initial_state_for(self, u: np.ndarray, y: np.ndarray, horizon: str) -> np.ndarray:
         """The x(0) that best explains another record, as MATLAB's ``compare`` estimates it.
 
-        The response is linear in x(0), so x(0) comes from linear least squares.
+        The response is linear in x(0), so x(0) comes from linear least squares. When the
+        filter that horizon runs (the predictor 1/C for "one_step", the system 1/A for
+        "simulation") is unstable, only the samples before its free response grows a
+        millionfold are used, so no exploding response is ever evaluated.
 
         Args:
             u: the record's input, detrended, in the units of the model's input.
             y: the record's output, detrended, in the units of the model's output; as long as u.
             horizon: "one_step" fits the one-step prediction, "simulation" the simulated output.
         """
-        zeros, no_signal = np.zeros(self.order), np.zeros_like(y, dtype=float)
-        unit_states = np.eye(self.order)
         if horizon == "one_step":
-            base = self.predict(u, y, zeros)
-            columns = [self.predict(no_signal, no_signal, x0) for x0 in unit_states]
+            denominator = np.concatenate([[1.0], self.c])
+            used = samples_before_growth(self.predictor_poles(), y.size)
+            base = self.predict(u[:used], y[:used], np.zeros(self.order))
         elif horizon == "simulation":
-            base = self.simulate(u, zeros)
-            columns = [self.simulate(no_signal, x0) for x0 in unit_states]
+            denominator = np.concatenate([[1.0], self.a])
+            used = samples_before_growth(self.poles(), y.size)
+            base = self.simulate(u[:used], np.zeros(self.order))
         else:
             raise ValueError(f"horizon = {horizon!r}: expected 'one_step' or 'simulation'")
-        solution, *_ = np.linalg.lstsq(np.column_stack(columns), y - base, rcond=None)
+        # x0_j enters the filter's output as an impulse at sample j.
+        columns = delayed_copies(impulse_response(denominator, used), range(self.order))
+        solution, *_ = np.linalg.lstsq(np.column_stack(columns), y[:used] - base, rcond=None)
         return solution

@@ -26,9 +26,9 @@ from maskless.analysis.identification.prediction_error import (
     parameter_count,
 )
 from maskless.analysis.identification.residual_analysis import residual_correlations
-from maskless.analysis.identification.subspace import default_horizon, estimate_n4sid
+from maskless.analysis.identification.subspace import HORIZON_RULE, estimate_n4sid
 from maskless.errors import ModelError
-from maskless.systems.linear_model import LinearModel
+from maskless.systems.linear_model import LinearModel, stable
 
 METHODS = ("pem", "armax", "arx", "n4sid")
 
@@ -133,21 +133,23 @@ def fit(
         polynomials = estimate_arx(part.u, part.y, order, sample_period_s)
         return _fitted_model(method, polynomials, part, False, count)
     if method == "n4sid":
-        horizon = default_horizon(order)
-        polynomials, singular_values = estimate_n4sid(
+        subspace = estimate_n4sid(
             part.u,
             part.y,
             order,
             sample_period_s,
-            horizon=horizon,
             estimate_initial_state=estimate_initial_state,
             progress=progress,
         )
         details = {
-            "horizon": horizon,
-            "singular_values": singular_values[: 2 * order + 2].tolist(),
+            "horizon": {
+                "past": subspace.past_horizon,
+                "future": subspace.future_horizon,
+                "rule": HORIZON_RULE,
+            },
+            "singular_values": subspace.singular_values[: 2 * order + 2].tolist(),
         }
-        return _fitted_model(method, polynomials, part, estimate_initial_state, count, details)
+        return _fitted_model(method, subspace.model, part, estimate_initial_state, count, details)
     raise ValueError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
 
 
@@ -177,9 +179,13 @@ def part_figures(
         part.u, initial_state_for_part(fitted, part, estimation, "simulation")
     )
     metrics = evaluate_fit(part.y, one_step, fitted.parameters)
+    # An unstable system's simulation overflows on a long part: its fit is then -inf or NaN
+    # (inf - inf), which the verdict names, rather than a numpy warning.
+    with np.errstate(over="ignore", invalid="ignore"):
+        simulation_fit = fit_percent(part.y, simulated)
     figures = {
         "fit_percent_1step": metrics.fit_percent,
-        "fit_percent_sim": fit_percent(part.y, simulated),
+        "fit_percent_sim": simulation_fit,
         "mse": metrics.mse,
         "fpe": metrics.fpe,
         "naic": metrics.naic,
@@ -234,9 +240,9 @@ def baseline_figures(fitted: FittedModel, parts: list[Part], progress=None) -> d
             )
         }
         x0 = initial_state_for_part(fitted, part, estimation, "simulation")
-        figures["free_response"][part.name] = {
-            "fit_percent_sim": fit_percent(part.y, model.free_response(part.y.size, x0))
-        }
+        with np.errstate(over="ignore", invalid="ignore"):  # as in part_figures
+            free_response_fit = fit_percent(part.y, model.free_response(part.y.size, x0))
+        figures["free_response"][part.name] = {"fit_percent_sim": free_response_fit}
     return figures
 
 
@@ -263,10 +269,30 @@ EXPLAINS_VERDICT = "The input explains the output"
 NO_VERDICT = "No verdict"
 
 
-def verdict(figures: dict, baselines: dict, gains: dict, part_name: str, stable: bool) -> str:
+def instability(polynomials: InnovationsModel) -> str | None:
+    """What is unstable in a model, in words: its system, its one-step predictor, or both.
+
+    None when both are stable. The predictor's poles are the roots of C(z); an unstable one
+    makes every one-step figure and Kalman filter built on the model diverge.
+    """
+    unstable = []
+    if not stable(polynomials.poles()):
+        largest = np.abs(polynomials.poles()).max()
+        unstable.append(f"its system (largest pole magnitude {largest:.6f})")
+    if not stable(polynomials.predictor_poles()):
+        largest = np.abs(polynomials.predictor_poles()).max()
+        unstable.append(f"its one-step predictor (largest root of C(z) {largest:.6f})")
+    return " and ".join(unstable) or None
+
+
+def verdict(
+    figures: dict, baselines: dict, gains: dict, part_name: str, unstable: str | None
+) -> str:
     """Whether the input explains the output, in plain words, judged on one part.
 
-    The judgement uses that part's figures and the model's ``margins`` over the baselines on it.
+    The judgement uses that part's figures and the model's ``margins`` over the baselines on it;
+    ``unstable`` (``instability``'s words, None for a stable model) is said at the end in
+    capitals.
 
     "explains the output": the input-driven simulation fits at least 50 % and beats the initial
     state's free response (or zero) by 10 points. "essentially nothing": dropping the input costs
@@ -282,13 +308,13 @@ def verdict(figures: dict, baselines: dict, gains: dict, part_name: str, stable:
         ],
         "free_response fit_percent_sim": baselines["free_response"][part_name]["fit_percent_sim"],
     }
+    warning = f"; the model is UNSTABLE: {unstable}" if unstable else ""
     undefined = [name for name, value in judged.items() if np.isnan(value)]
     if undefined:
         # NaN compares false with everything, so a threshold would pass a verdict on nothing.
         return (
             f"{NO_VERDICT}: on the {part_name} part, {', '.join(undefined)} "
-            f"{'is' if len(undefined) == 1 else 'are'} NaN"
-            + ("; the model is UNSTABLE." if not stable else ".")
+            f"{'is' if len(undefined) == 1 else 'are'} NaN{warning}."
         )
     structure, order = baselines["without_input_structure"].upper(), baselines["order"]
     evidence = (
@@ -297,10 +323,8 @@ def verdict(figures: dict, baselines: dict, gains: dict, part_name: str, stable:
         f"{figures['fit_percent_1step']:.3f} %, and the model driven by the input alone fits the "
         f"{part_name} part {figures['fit_percent_sim']:.1f} % "
         f"({baselines['free_response'][part_name]['fit_percent_sim']:.1f} % from its initial "
-        "state alone)"
+        f"state alone){warning}"
     )
-    if not stable:
-        evidence += "; the model is UNSTABLE"
     if figures["fit_percent_sim"] >= EXPLAINS_SIM and gains["free_response"] >= MARGIN_SIM:
         return f"{EXPLAINS_VERDICT}: {evidence}."
     if gains["without_input"] < MARGIN_1STEP and gains["free_response"] < MARGIN_SIM:
@@ -342,40 +366,10 @@ def identify(
     naive = naive_figures(parts)
     for order in orders:
         fitted = fit(method, estimation, order, sample_period_s, estimate_initial_state, progress)
-        model, polynomials = fitted.model, fitted.polynomials
         figures = {part.name: part_figures(fitted, part, estimation, k_step) for part in parts}
         model_baselines = baseline_figures(fitted, parts, progress)
-        stable = model.is_stable()
         gains = margins(figures[validation.name], model_baselines, naive, validation.name)
-        entry = {
-            "method": method,
-            "order": order,
-            "ts": sample_period_s,
-            **{name: getattr(model, name).tolist() for name in ("A", "B", "C", "D", "K")},
-            "initial_state": "estimated" if fitted.estimated_initial_state else "zero",
-            "parameters": fitted.parameters,
-            "poles": [[float(p.real), float(p.imag)] for p in model.poles()],
-            "stable": stable,
-            "predictor_stable": bool(np.all(np.abs(polynomials.predictor_poles()) < 1)),
-            "dc_gain": _dc_gain(model),
-            **fitted.details,
-            **figures,
-            "margins_on_validation": gains,
-            "verdict": verdict(
-                figures[validation.name], model_baselines, gains, validation.name, stable
-            ),
-        }
-        if method == "armax":
-            entry["polynomials"] = {
-                "A": [1.0, *polynomials.a.tolist()],
-                "B": [0.0, *polynomials.b.tolist()],
-                "C": [1.0, *polynomials.c.tolist()],
-            }
-        if not stable:
-            entry["warning"] = (
-                f"the order-{order} model is unstable (largest pole magnitude "
-                f"{np.abs(model.poles()).max():.6f}); do not design a controller on it"
-            )
+        entry = model_entry(fitted, figures, model_baselines, gains, validation.name)
         entries.append(entry)
         fitted_models.append(fitted)
         baselines.append(model_baselines)
@@ -389,6 +383,7 @@ def identify(
             "the validation part overlaps the estimation part: its figures are not a holdout "
             "and flatter the models"
         )
+    warnings += [entry["warning"] for entry in entries if "warning" in entry]
     # Data diagnostics (issue 14): the excitation, the fitted poles near 1, the record's own.
     diagnostics = data_diagnostics.diagnose(
         estimation.u, {m.model.order: m.model.poles() for m in fitted_models}, record_diagnostics
@@ -415,9 +410,49 @@ def identify(
         "baselines": {"naive_last_value": naive, "per_model": baselines},
         "warnings": warnings,
         "diagnostics": diagnostics.as_dict(),
-        "verdict": best["verdict"] + (f" Warning: {warnings[0]}." if warnings else ""),
+        "verdict": best["verdict"] + "".join(f" Warning: {warning}." for warning in warnings),
     }
     return report, fitted_models
+
+
+def model_entry(
+    fitted: FittedModel, figures: dict, baselines: dict, gains: dict, part_name: str
+) -> dict:
+    """One model's entry in the report: the model, its figures, its verdict on ``part_name``.
+
+    A model with an unstable system or one-step predictor gets a "warning" naming which, and
+    its verdict says so.
+    """
+    model, polynomials = fitted.model, fitted.polynomials
+    unstable = instability(polynomials)
+    entry = {
+        "method": fitted.method,
+        "order": model.order,
+        "ts": model.sample_period_s,
+        **{name: getattr(model, name).tolist() for name in ("A", "B", "C", "D", "K")},
+        "initial_state": "estimated" if fitted.estimated_initial_state else "zero",
+        "parameters": fitted.parameters,
+        "poles": [[float(p.real), float(p.imag)] for p in model.poles()],
+        "stable": model.is_stable(),
+        "predictor_stable": stable(polynomials.predictor_poles()),
+        "dc_gain": _dc_gain(model),
+        **fitted.details,
+        **figures,
+        "margins_on_validation": gains,
+        "verdict": verdict(figures[part_name], baselines, gains, part_name, unstable),
+    }
+    if fitted.method == "armax":
+        entry["polynomials"] = {
+            "A": [1.0, *polynomials.a.tolist()],
+            "B": [0.0, *polynomials.b.tolist()],
+            "C": [1.0, *polynomials.c.tolist()],
+        }
+    if unstable:
+        entry["warning"] = (
+            f"the order-{model.order} {fitted.method} model is unstable: {unstable}; its "
+            "figures diverge, so do not predict with it or design a controller on it"
+        )
+    return entry
 
 
 def _dc_gain(model: LinearModel) -> float | None:

@@ -127,3 +127,71 @@ def test_a_binary_or_non_utf8_model_file_is_refused(tmp_path, contents):
     path.write_bytes(contents)
     with pytest.raises(ModelError, match=r"model\.yaml: not UTF-8 text"):
         load_identified_model(path)
+
+
+# --- Hammerstein model files -----------------------------------------------------------------
+
+
+def _hammerstein_in_mm_ma():
+    from maskless.systems.hammerstein_model import HammersteinModel
+    from maskless.systems.plant.valve_map import ValveMap
+
+    a = np.poly([0.9, 0.5])[1:]
+    return HammersteinModel(
+        maps=(ValveMap([60.0, 100.0, 165.0], [0.0, 0.3, 1.0]), ValveMap([55.0, 150.0], [0, 1])),
+        a=[a, a],
+        b=[[2.0, 1.0], [-0.3, -0.1]],
+        input_delay_samples=2,
+        operating_output=210.0,
+        sample_period_s=0.0667,
+        input_unit="mA",
+        output_unit="mm",
+    )
+
+
+def test_a_hammerstein_file_loads_as_one_model_in_si(tmp_path):
+    from maskless.analysis.identification.model_file import hammerstein_file_contents
+    from maskless.systems.hammerstein_model import HammersteinModel
+
+    written = _hammerstein_in_mm_ma()
+    path = tmp_path / "hammerstein.yaml"
+    path.write_text(yaml.safe_dump(hammerstein_file_contents(written, verdict="explains")))
+    loaded = load_identified_model(path)
+    assert isinstance(loaded, HammersteinModel)
+    assert (loaded.input_unit, loaded.output_unit) == ("A", "m")
+    np.testing.assert_allclose(loaded.maps[0].currents, [0.060, 0.100, 0.165])
+    assert loaded.operating_output == pytest.approx(0.210)
+    # The same experiment in SI gives the same output in m.
+    u_ma = np.column_stack([np.linspace(0, 190, 300), np.linspace(190, 0, 300)])
+    np.testing.assert_allclose(loaded.simulate(u_ma * 1e-3), written.simulate(u_ma) * 1e-3)
+    assert loaded.input_delay_samples == 2
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (
+            lambda c: c["valves"]["inlet"].update(openings=[0.0, 0.5, 0.4]),
+            r"valves\.inlet.*monotone",
+        ),
+        (lambda c: c["valves"]["inlet"].update(currents=[60.0, 50.0, 165.0]), "increasing knots"),
+        (lambda c: c["valves"]["outlet"].update(currents=[55.0, "x"]), r"valves\.outlet\.currents"),
+        (lambda c: c.update(valves={"outlet": c["valves"]["outlet"]}), "inlet and outlet"),
+        (lambda c: c.update(b=[[2.0, 1.0]]), r"b must have shape \(2, 2\)"),
+        (lambda c: c.update(a=[[0.1, float("nan")], [0.1, 0.2]]), "'a': expected finite"),
+        (lambda c: c["input"].update(unit="mm"), "expected a current"),
+        (lambda c: c["output"].pop("offset"), r"missing field 'output\.offset'"),
+        (lambda c: c.update(stable=False), "'stable' = false"),
+        (lambda c: c.update(input_delay_samples=0), "input_delay_samples = 0"),
+    ],
+)
+def test_a_defective_hammerstein_file_is_one_line_naming_the_field(tmp_path, edit, message):
+    from maskless.analysis.identification.model_file import hammerstein_file_contents
+
+    contents = hammerstein_file_contents(_hammerstein_in_mm_ma(), verdict="explains")
+    edit(contents)
+    path = tmp_path / "h.yaml"
+    path.write_text(yaml.safe_dump(contents))
+    with pytest.raises(ModelError, match=message) as raised:
+        load_identified_model(path)
+    assert "h.yaml" in str(raised.value) and "\n" not in str(raised.value)

@@ -78,10 +78,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--method",
-        choices=METHODS,
+        choices=(*METHODS, "hammerstein"),
         default="pem",
         help="pem: innovations-form state space; armax: the same by polynomials; "
-        "arx: least squares; n4sid: subspace (PO-MOESP) (default pem)",
+        "arx: least squares; n4sid: subspace (PO-MOESP); hammerstein: each valve's static map "
+        "and the dynamics, from a recording of both valves (default pem)",
     )
     parser.add_argument(
         "--estimation",
@@ -163,6 +164,18 @@ def identification_request(args: argparse.Namespace) -> IdentificationRequest:
 
 def run_command(args: argparse.Namespace) -> int:
     """`maskless identify`: returns the process exit code."""
+    if args.method == "hammerstein":
+        from maskless.diagrams.hammerstein_run import (
+            format_hammerstein_report,
+            identify_hammerstein_to_files,
+        )
+
+        estimation = {"estimation": args.estimation, "validation": args.validation}
+        report = identify_hammerstein_to_files(
+            args.input, args.ts, parse_orders(args.orders), args.out, **estimation
+        )
+        print(json.dumps(report) if args.json else format_hammerstein_report(report))
+        return 0
     report = identify_to_files(identification_request(args), args.out)
     print(json.dumps(report) if args.json else format_identification_report(report, args.out))
     return 0

@@ -6,8 +6,13 @@ import numpy as np
 import pytest
 import yaml
 from identification_records import simulate_record
+from two_input_records import simulate_two_inputs
 
-from maskless.analysis.identification.model_file import load_identified_model, model_file_contents
+from maskless.analysis.identification.model_file import (
+    load_identified_model,
+    load_input_models,
+    model_file_contents,
+)
 from maskless.analysis.identification.report import Part, fit
 from maskless.errors import ModelError
 
@@ -195,3 +200,79 @@ def test_a_defective_hammerstein_file_is_one_line_naming_the_field(tmp_path, edi
     with pytest.raises(ModelError, match=message) as raised:
         load_identified_model(path)
     assert "h.yaml" in str(raised.value) and "\n" not in str(raised.value)
+
+
+def two_input_contents():
+    """A two-input model file's mapping, written as `maskless identify` writes one."""
+    u, y = simulate_two_inputs(2000, seed=0)
+    fitted = fit("pem", Part("estimation", u, y), 2, 0.048, input_names=("inlet", "outlet"))
+    contents = model_file_contents(
+        fitted,
+        input_unit=("mA", "A"),
+        output_unit="mm",
+        input_offset=(80.0, 0.09),
+        output_offset=692.4,
+        detrend="mean",
+        trend_slopes_per_sample=None,
+        verdict="The input explains the output: ...",
+    )
+    return fitted, contents
+
+
+def test_a_two_input_file_holds_b_per_input_and_loads_as_a_model_per_input(tmp_path):
+    fitted, contents = two_input_contents()
+    assert np.array(contents["B"]).shape == (2, 2) and np.array(contents["D"]).shape == (1, 2)
+    assert [entry["name"] for entry in contents["inputs"]] == ["inlet", "outlet"]
+    assert "input" not in contents
+    path = tmp_path / "two.yaml"
+    path.write_text(yaml.safe_dump(contents, sort_keys=False))
+    inlet, outlet = load_input_models(path)
+    # Each column scales by (output unit in SI) / (its input unit in SI): mm/mA keeps its digits,
+    # mm/A is 1e-3 of them.
+    np.testing.assert_allclose(inlet.B[:, 0], fitted.polynomials.b[:, 0])
+    np.testing.assert_allclose(outlet.B[:, 0], 1e-3 * fitted.polynomials.b[:, 1])
+    assert (inlet.operating_input, outlet.operating_input) == pytest.approx((0.08, 0.09))
+    assert inlet.operating_output == pytest.approx(0.6924)
+    np.testing.assert_array_equal(inlet.A, outlet.A)
+    # The designs and plants drive one input: the file is refused in one line naming it.
+    with pytest.raises(ModelError) as refused:
+        load_identified_model(path)
+    message = str(refused.value)
+    assert "\n" not in message and str(path) in message
+    assert "a model of 2 inputs (inlet, outlet)" in message
+    # A single-input file still loads unchanged, and as one model per input.
+    u, y, _, _ = simulate_record(2, "white", 3000)
+    single = model_file_contents(
+        fit("pem", Part("estimation", u, y), 2, 0.048),
+        input_unit="mA",
+        output_unit="mm",
+        input_offset=81.3,
+        output_offset=692.4,
+        detrend="mean",
+        trend_slopes_per_sample=None,
+        verdict="...",
+    )
+    path.write_text(yaml.safe_dump(single))
+    (only,) = load_input_models(path)
+    np.testing.assert_array_equal(only.B, load_identified_model(path).B)
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda c: c["inputs"].pop(), "expected a list of two or more mappings"),
+        (lambda c: [row.pop() for row in c["B"]], r"field 'B' has shape \(2, 1\)"),
+        (lambda c: c["D"][0].append(0.0), r"field 'D' has shape \(1, 3\)"),
+        (lambda c: c.update(input={"unit": "A", "offset": 0.0}), "'input' and 'inputs' both"),
+        (lambda c: c["inputs"][1].update(unit="psi"), r"inputs\[1\]\): field 'input.unit'"),
+        (lambda c: c["inputs"][0].pop("offset"), r"inputs\[0\]\): missing field 'input.offset'"),
+    ],
+)
+def test_a_defective_two_input_file_is_one_line_naming_the_field(tmp_path, change, message):
+    _, contents = two_input_contents()
+    change(contents)
+    path = tmp_path / "two.yaml"
+    path.write_text(yaml.safe_dump(contents))
+    with pytest.raises(ModelError, match=message) as refused:
+        load_input_models(path)
+    assert "\n" not in str(refused.value) and str(path) in str(refused.value)

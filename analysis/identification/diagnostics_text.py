@@ -90,3 +90,33 @@ def format_diagnostics(report: dict) -> list[str]:
 def _spaced(unit: str) -> str:
     """A unit to follow a number: " mA", or nothing when not given."""
     return f" {unit}" if unit else ""
+
+
+def format_input_diagnostics(report: dict) -> list[str]:
+    """``format_diagnostics`` for several inputs: each input's lines, then their separation."""
+    diagnostics, record = report["diagnostics"], report.get("record")
+    lines = []
+    if record is not None:
+        units = record["units"]
+        lines.append(
+            "record: "
+            + ", ".join(
+                f"input {name} in {unit}" if unit else f"input {name} unit not given"
+                for name, unit in zip(record["inputs"], units["input"], strict=True)
+            )
+            + f" ({record['units_from']['input']}), output in {units['output'] or 'no unit'}"
+            + f"; {record['samples']} samples, --detrend {record['detrend']}"
+        )
+    for name, own in diagnostics["inputs"].items():
+        lines += [f"{name}: {line}" for line in format_diagnostics({"diagnostics": own})]
+    separation = diagnostics["separation"]
+    lines.append(
+        f"inputs together: they excite {separation['joint_order']} of "
+        f"{separation['needed_order']} directions; the others explain "
+        + ", ".join(
+            f"{share:.1%} of {name}'s variance"
+            for name, share in separation["shared_variance"].items()
+        )
+        + f" (limit {separation['shared_variance_limit']:.0%})"
+    )
+    return lines

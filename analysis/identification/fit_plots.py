@@ -116,7 +116,7 @@ def plot_compare(
         axis.plot(time_s, one_step, lw=1.2, color="tab:blue", label="1-step prediction")
         axis.plot(time_s, simulated, lw=1.2, color="tab:orange", label="simulation")
         axis.plot(time_s, part.y, lw=0.6, color="black", label="measured")  # drawn on top
-        stability = "" if fitted.model.is_stable() else ", UNSTABLE"
+        stability = "" if fitted.linear_models[0].is_stable() else ", UNSTABLE"
         axis.set_title(
             f"{fitted.method} order {model.order}{stability}, {part.name} part: fit 1-step "
             f"{fit_percent(part.y, one_step):.3f} %, sim {fit_percent(part.y, simulated):.1f} %"
@@ -138,14 +138,28 @@ def plot_residuals(path: str | Path, fitted: FittedModel, parts: list[Part]) -> 
     grid = figure.subplots(len(parts), 2, squeeze=False)
     for (auto, cross), part in zip(grid, parts, strict=True):
         x0 = initial_state_for_part(fitted, part, parts[0], "one_step")
-        c = residual_correlations(part.y - model.predict(part.u, part.y, x0), part.u)
+        residuals = part.y - model.predict(part.u, part.y, x0)
+        # With m inputs, one cross-correlation per input on one axis.
+        inputs = [part.u] if part.u.ndim == 1 else list(part.u.T)
+        every = [residual_correlations(residuals, u) for u in inputs]
+        c = every[0]
         auto.stem(c.lags, c.autocorrelation, basefmt=" ")
         auto.axhspan(-c.band, c.band, color="tab:blue", alpha=0.15, label="99 % band")
         auto.set_title(f"{part.name}: autocorrelation of residuals")
         auto.set_xlabel("lag (samples)")
         auto.legend(loc="upper right", fontsize=8)
-        cross.stem(c.cross_lags, c.cross_correlation, basefmt=" ")
+        for index, correlations in enumerate(every):
+            cross.stem(
+                correlations.cross_lags,
+                correlations.cross_correlation,
+                basefmt=" ",
+                linefmt=f"C{index}-",
+                markerfmt=f"C{index}o",
+                label=f"input {index + 1}" if len(every) > 1 else None,
+            )
         cross.axhspan(-c.cross_band, c.cross_band, color="tab:blue", alpha=0.15)
+        if len(every) > 1:
+            cross.legend(loc="upper right", fontsize=8)
         cross.set_title(f"{part.name}: cross-correlation of input and residuals")
         cross.set_xlabel("lag (samples; > 0: input leads)")
     figure.suptitle(f"{fitted.method} order {model.order}: residual analysis")

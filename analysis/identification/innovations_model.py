@@ -1,9 +1,14 @@
-"""The single-input, single-output innovations-form model (Eq. 25) identification searches over.
+"""The single-output innovations-form model (Eq. 25) identification searches over.
 
 Its polynomial parameterisation is the observer canonical form:
 
     x(k+1) = A x(k) + B u(k) + K e(k),   y(k) = C x(k) + e(k)
     A = [[-a1, 1, 0, ...], [-a2, 0, 1, ...], ..., [-an, 0, ..., 0]],  C = [1, 0, ..., 0],  D = 0
+
+With m inputs (the inlet and the outlet valve) B is n x m: one numerator B_i(q) per input over the
+common denominator A(q), so A(q) y = B_1(q) u_1 + ... + B_m(q) u_m + C(q) e. A single-input model
+keeps b 1-D and u 1-D, and runs exactly the filters it always ran; an m-input one takes u of
+shape (N, m) and sums each input's FIR part B_i(q) u_i before the one shared recursive filter.
 
 It is the ARMAX model (Eq. 14-18) A(q) y = B(q) u + C(q) e with A(q) = 1 + a1 q⁻¹ + ... + an q⁻ⁿ,
 B(q) = b1 q⁻¹ + ... + bn q⁻ⁿ and C(q) = A(q) + k1 q⁻¹ + ... + kn q⁻ⁿ (c_i = a_i + k_i), so one
@@ -14,11 +19,12 @@ lfilter runs in C; its state is the model's state x, so an initial state enters 
 This is identification's own working form: the estimators (PEM, ARMAX, ARX, N4SID) fit its
 coefficients (a, b, k) and the report's figures run its filters. Identification's result is the
 toolkit's ``LinearModel`` (``linear_model``): ``report.FittedModel.model`` and the model files
-`maskless identify` writes; its poles, stability and DC gain are read there.
+`maskless identify` writes; its poles, stability and DC gain are read there. ``LinearModel`` is
+single-input, so an m-input model is read as one ``LinearModel`` per input (``input_index``).
 """
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.signal
@@ -72,7 +78,8 @@ class InnovationsModel:
 
     Attributes:
         a: A(q) coefficients a1..an (n,).
-        b: B(q) coefficients b1..bn (n,); zeros for a model without input (ARMA).
+        b: B(q) coefficients b1..bn (n,) of a single input, or (n, m), column i B_i(q) of input i;
+            zeros for a model without input (ARMA).
         k: innovations gain K (n,).
         sample_period_s: Ts (s).
         initial_state: x(0) for the record it was estimated on (n,); zeros when not estimated.
@@ -90,18 +97,54 @@ class InnovationsModel:
         return self.a.size
 
     @property
+    def inputs(self) -> int:
+        """m, the number of inputs (1 for a single input's 1-D b)."""
+        return 1 if self.b.ndim == 1 else self.b.shape[1]
+
+    def input_alone(self, index: int) -> "InnovationsModel":
+        """The single-input model from input ``index`` alone (b = B's column ``index``).
+
+        The same A, K and x(0): with the other inputs held at their operating points it is the
+        whole model. A single-input model is returned as it is for index 0.
+        """
+        if not 0 <= index < self.inputs:
+            raise ValueError(f"index = {index}: expected 0 <= index < {self.inputs} inputs")
+        return self if self.b.ndim == 1 else replace(self, b=self.b[:, index])
+
+    def _input_drive(self, u: np.ndarray) -> np.ndarray:
+        """Σ_i B_i(q) u_i of an m-input model: each input's FIR part, before 1/A or 1/C.
+
+        The filters' initial state enters only through their shared denominator, so filtering
+        this sum once is the sum of filtering each input.
+        """
+        u = np.asarray(u, float)
+        if u.ndim != 2 or u.shape[1] != self.inputs:
+            raise ValueError(f"u: expected shape (N, {self.inputs}), got {u.shape}")
+        drive = np.zeros(u.shape[0])
+        for column, numerator in zip(u.T, self.b.T, strict=True):
+            drive += scipy.signal.lfilter(np.concatenate([[0.0], numerator]), [1.0], column)
+        return drive
+
+    @property
     def c(self) -> np.ndarray:
         """C(q) coefficients c1..cn of the noise model."""
         return self.a + self.k
 
-    def linear_model(self, innovations_variance: float | None = None) -> LinearModel:
+    def linear_model(
+        self, innovations_variance: float | None = None, input_index: int = 0
+    ) -> LinearModel:
         """The model as a ``LinearModel``: the observer canonical A, B, C, D = 0 and K.
 
-        It models the detrended record's deviations, in the record's units.
+        It models the detrended record's deviations, in the record's units. ``LinearModel`` is
+        single-input, so an m-input model gives the one from input ``input_index`` (the others
+        held at their operating points): its poles, K and variance are the whole model's.
 
         Args:
             innovations_variance: σ² of the one-step prediction errors, when known.
+            input_index: which input's column of B (0 for a single input).
         """
+        if self.b.ndim == 2:
+            return self.input_alone(input_index).linear_model(innovations_variance)
         n = self.order
         A = np.zeros((n, n))
         A[:, 0] = -self.a
@@ -133,6 +176,10 @@ class InnovationsModel:
         """
         x0 = self.initial_state if initial_state is None else np.asarray(initial_state, float)
         denominator = np.concatenate([[1.0], self.c])
+        if self.b.ndim == 2:
+            drive = self._input_drive(u)
+            drive += scipy.signal.lfilter(np.concatenate([[0.0], self.k]), [1.0], y)
+            return scipy.signal.lfilter([1.0], denominator, drive, zi=x0)[0]
         from_u = np.concatenate([[0.0], self.b])
         from_y = np.concatenate([[0.0], self.k])
         predicted, _ = scipy.signal.lfilter(from_u, denominator, u, zi=x0)
@@ -152,13 +199,21 @@ class InnovationsModel:
         impulse = np.zeros(steps)
         impulse[0] = 1.0
         noise_head = scipy.signal.lfilter(c_poly, a_poly, impulse)  # h(0..k-1) of C/A
-        from_u = np.convolve(noise_head, np.concatenate([[0.0], self.b]))
         from_y = np.convolve(noise_head, a_poly)
+        if self.b.ndim == 2:
+            # Each filter shares the denominator C: their FIR parts are summed, then filtered once.
+            drive = scipy.signal.lfilter(noise_head, [1.0], self._input_drive(u))
+            drive -= scipy.signal.lfilter(from_y, [1.0], y)
+            return scipy.signal.lfilter([1.0], c_poly, drive) + y
+        from_u = np.convolve(noise_head, np.concatenate([[0.0], self.b]))
         return scipy.signal.lfilter(from_u, c_poly, u) + y - scipy.signal.lfilter(from_y, c_poly, y)
 
     def simulate(self, u: np.ndarray, initial_state=None) -> np.ndarray:
         """The noise-free response to ``u`` (simulation, no measured outputs used)."""
         x0 = self.initial_state if initial_state is None else np.asarray(initial_state, float)
+        if self.b.ndim == 2:
+            drive = self._input_drive(u)
+            return scipy.signal.lfilter([1.0], np.concatenate([[1.0], self.a]), drive, zi=x0)[0]
         response, _ = scipy.signal.lfilter(
             np.concatenate([[0.0], self.b]), np.concatenate([[1.0], self.a]), u, zi=x0
         )
@@ -166,7 +221,8 @@ class InnovationsModel:
 
     def free_response(self, samples: int, initial_state=None) -> np.ndarray:
         """The output from the initial state alone, with no input."""
-        return self.simulate(np.zeros(samples), initial_state)
+        no_input = np.zeros(samples) if self.b.ndim == 1 else np.zeros((samples, self.inputs))
+        return self.simulate(no_input, initial_state)
 
     def initial_state_for(self, u: np.ndarray, y: np.ndarray, horizon: str) -> np.ndarray:
         """The x(0) that best explains another record, as MATLAB's ``compare`` estimates it.
@@ -177,7 +233,8 @@ class InnovationsModel:
         millionfold are used, so no exploding response is ever evaluated.
 
         Args:
-            u: the record's input, detrended, in the units of the model's input.
+            u: the record's input, detrended, in the units of the model's input: (N,), or (N, m)
+                for m inputs.
             y: the record's output, detrended, in the units of the model's output; as long as u.
             horizon: "one_step" fits the one-step prediction, "simulation" the simulated output.
         """

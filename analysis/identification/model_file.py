@@ -8,6 +8,12 @@ A Hammerstein model (``method: hammerstein``) is held as its linear part's polyn
 per valve), its input delay, each valve's static map (``valves``: knot currents and openings, in
 the input's unit) and the output with every valve shut (``output.offset``); it loads as one
 ``HammersteinModel`` in SI.
+
+A model of m inputs (the inlet and the outlet valve) holds B (n x m), D (1 x m) and, instead of
+``input``, ``inputs``: one mapping per column of B with the input's name, unit and offset. The
+designs and plants drive one input, so ``load_identified_model`` refuses such a file in one line
+naming it; ``load_input_models`` reads it as one single-input ``LinearModel`` per input (the others
+held at their operating points), each checked as a single-input file is.
 """
 
 import math
@@ -53,6 +59,17 @@ def model_file_contents(
     The model is of the detrended record's deviations, in the record's units; the variance is in
     output_unit².
     """
+    if fitted.model is None:
+        return _multi_input_contents(
+            fitted,
+            input_units=input_unit,
+            output_unit=output_unit,
+            input_offsets=input_offset,
+            output_offset=output_offset,
+            detrend=detrend,
+            trend_slopes_per_sample=trend_slopes_per_sample,
+            verdict=verdict,
+        )
     model = fitted.model
     contents = {
         "method": fitted.method,
@@ -124,6 +141,13 @@ def model_from_contents(contents, source: str) -> LinearModel | HammersteinModel
     ``source`` names the file in every message. ``maskless identify`` checks what it is about to
     write with this too, so it never writes a file this loader would refuse.
     """
+    if isinstance(contents, dict) and "inputs" in contents:
+        models = input_models_from_contents(contents, source)
+        raise ModelError(
+            f"{source}: a model of {len(models)} inputs ({', '.join(_input_names(contents))}): "
+            "the designs and plants drive one input, so they cannot use it yet; identify with one "
+            "--input-column for a design model"
+        )
     if not isinstance(contents, dict):
         raise ModelError(
             f"{source}: expected a mapping of A, B, C, D, K, sample_period_s, input, output; "
@@ -287,3 +311,112 @@ def _check_claimed_stability(
             f"{source}: field 'stable' = {str(claimed).lower()}, but A's largest pole magnitude "
             f"is {largest:.6g}"
         )
+
+
+def _multi_input_contents(
+    fitted: "FittedModel",
+    *,
+    input_units: tuple[str, ...],
+    output_unit: str,
+    input_offsets: tuple[float, ...],
+    output_offset: float,
+    detrend: str,
+    trend_slopes_per_sample: tuple[tuple[float, ...], float] | None,
+    verdict: str,
+) -> dict:
+    """``model_file_contents`` of an m-input model: B and D of m columns, ``inputs`` per column.
+
+    ``fitted.details["input_names"]`` names the inputs (default "input 1", ...).
+    """
+    singles = fitted.input_models
+    names = fitted.details.get("input_names") or [f"input {i + 1}" for i in range(len(singles))]
+    inputs = [
+        {"name": name, "unit": unit, "offset": offset}
+        for name, unit, offset in zip(names, input_units, input_offsets, strict=True)
+    ]
+    contents = {
+        "method": fitted.method,
+        "order": singles[0].order,
+        "sample_period_s": singles[0].sample_period_s,
+        "A": singles[0].A.tolist(),
+        "B": np.column_stack([single.B for single in singles]).tolist(),
+        "C": singles[0].C.tolist(),
+        "D": np.zeros((1, len(singles))).tolist(),
+        "K": singles[0].K.tolist(),
+        "inputs": inputs,
+        "output": {"unit": output_unit, "offset": output_offset},
+        "detrend": detrend,
+        "innovations_variance": singles[0].innovations_variance,
+        "stable": singles[0].is_stable(),
+        "verdict": verdict,
+    }
+    if trend_slopes_per_sample is not None:
+        for entry, slope in zip(inputs, trend_slopes_per_sample[0], strict=True):
+            entry["trend_slope_per_sample"] = slope
+        contents["output"]["trend_slope_per_sample"] = trend_slopes_per_sample[1]
+    return contents
+
+
+def load_input_models(path: str | Path) -> tuple[LinearModel, ...]:
+    """Reads a model file as one single-input ``LinearModel`` (SI) per input.
+
+    A single-input file gives one; an m-input file (``inputs``) gives m, input i's from B's
+    column i with that input's unit and offset, the others held at their operating points.
+
+    Raises:
+        MissingFileError: there is no such file.
+        ModelError: as ``load_identified_model``, and for an ``inputs`` list that does not match
+            B's columns.
+    """
+    path = Path(path)
+    try:
+        contents = read_yaml(path, ModelError)
+    except MissingFileError:
+        raise MissingFileError(f"model file not found: {path}") from None
+    if isinstance(contents, dict) and "inputs" in contents:
+        return input_models_from_contents(contents, str(path))
+    return (model_from_contents(contents, str(path)),)
+
+
+def input_models_from_contents(contents: dict, source: str) -> tuple[LinearModel, ...]:
+    """An m-input model file's mapping as one checked single-input ``LinearModel`` per input.
+
+    Each is checked as a single-input file (units, shapes, numbers, sample period, stability),
+    after B (n x m) and D (1 x m) are checked to have one column per entry of ``inputs``.
+    """
+    inputs = contents["inputs"]
+    if (
+        not isinstance(inputs, list)
+        or len(inputs) < 2
+        or not all(isinstance(entry, dict) for entry in inputs)
+    ):
+        raise ModelError(
+            f"{source}: field 'inputs' = {inputs!r}: expected a list of two or more mappings "
+            "(name, unit, offset), one per column of B"
+        )
+    if "input" in contents:
+        raise ModelError(f"{source}: fields 'input' and 'inputs' both given: expected one")
+    columns = {name: _matrix(source, contents, name) for name in ("B", "D")}
+    for name, rows in (("B", None), ("D", 1)):
+        shape = columns[name].shape
+        if shape[1] != len(inputs) or (rows is not None and shape[0] != rows):
+            raise ModelError(
+                f"{source}: field '{name}' has shape {shape}: expected one column per entry of "
+                f"'inputs' ({len(inputs)})" + (", one row" if rows else "")
+            )
+    models = []
+    for index, entry in enumerate(inputs):
+        single = {key: value for key, value in contents.items() if key != "inputs"}
+        single["input"] = entry
+        single["B"] = columns["B"][:, [index]].tolist()
+        single["D"] = columns["D"][:, [index]].tolist()
+        models.append(model_from_contents(single, f"{source} (inputs[{index}])"))
+    return tuple(models)
+
+
+def _input_names(contents: dict) -> list[str]:
+    """The names in a checked ``inputs`` list ("input i" where one has none)."""
+    return [
+        str(entry.get("name", f"input {index + 1}"))
+        for index, entry in enumerate(contents["inputs"])
+    ]

@@ -6,6 +6,10 @@ Reads the input (valve current) and output (head distance or height) from CSV fi
 line, or a column) or from a maskless MCAP recording (TOPIC:FIELD), detrends them, fits each order
 on the estimation part and judges it on both parts. Writes DIR/report.json, one model file per order
 (discrete A, B, C, D, K, Ts, offsets and units, as YAML), compare plots and residual plots.
+
+Several inputs (the inlet and the outlet valve, --input-column TOPIC:FIELD,FIELD or NAME,NAME) give
+one model of several inputs (B with a column each), reported per input; the designs and plants
+drive one input and refuse its model file in one line.
 """
 
 import argparse
@@ -13,6 +17,7 @@ import json
 from pathlib import Path
 
 from maskless.analysis.identification.model_file import MODEL_FILE_UNITS
+from maskless.analysis.identification.records import VALVE_CURRENTS_FIELDS
 from maskless.diagrams.cli import add_out_argument, given_labels
 from maskless.diagrams.identification_run import (
     DEFAULT_MCAP_INPUT,
@@ -55,7 +60,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--input-column",
         default=None,
         metavar="NAME|INDEX|TOPIC:FIELD",
-        help=f"CSV column, or MCAP TOPIC:FIELD (default for MCAP: {DEFAULT_MCAP_INPUT})",
+        help=f"CSV column, or MCAP TOPIC:FIELD (default for MCAP: {DEFAULT_MCAP_INPUT}); "
+        "several inputs as NAME,NAME or TOPIC:FIELD,FIELD (both valves: "
+        f"{VALVE_CURRENTS_FIELDS}) for one model of several inputs",
     )
     parser.add_argument(
         "--output-column",
@@ -121,7 +128,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="UNIT",
         help="unit of the input, any text, shown as given (default mA for CSV, the field's unit "
-        f"for MCAP); only {', '.join(MODEL_FILE_UNITS)} convert to the SI a design loads",
+        f"for MCAP; several inputs: one for all or UNIT,UNIT); only "
+        f"{', '.join(MODEL_FILE_UNITS)} convert to the SI a design loads",
     )
     parser.add_argument(
         "--output-unit",

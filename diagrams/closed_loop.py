@@ -46,10 +46,12 @@ from maskless.systems.fault_injection import (
     camera_faults_of,
     plant_fault_factors,
 )
+from maskless.systems.hammerstein_model import HammersteinModel
 from maskless.systems.late_random_sources import LateRandomSources
 from maskless.systems.linear_model import LinearModel
 from maskless.systems.named_symbolic_system import PortMap
 from maskless.systems.paper_parameters import paper_filter_variances_si
+from maskless.systems.plant.hammerstein_plant import add_hammerstein_plant
 from maskless.systems.plant.linear_model_plant import (
     add_linear_model_plant,
     operating_head_height_m,
@@ -61,6 +63,7 @@ from maskless.systems.plant.pneumatic_plant import (
     equilibrium_state,
     set_pneumatic_parameters,
 )
+from maskless.systems.plumbing import remove_plumbing
 from maskless.systems.sensing.camera_error import add_camera_error
 from maskless.systems.sensing.depth_sensor import add_depth_sensor
 from maskless.systems.sensing.local_kalman_filter import add_local_kalman_filter
@@ -190,6 +193,14 @@ def add_plant(
             gauge_pressure=sensor.get_output_port(),
         )
     model, camera_height_m = linear_plant_model(config)
+    if isinstance(model, HammersteinModel):
+        plant = add_hammerstein_plant(builder, model, name=f"{kind_name(config.plant)}_plant")
+        return AddedPlant(
+            inlet=plant.inputs["inlet_valve_current_a"],
+            outlet=plant.inputs["outlet_valve_current_a"],
+            head_height=plant.outputs["head_height_m"],
+            start_height_m=model.operating_output,
+        )
     plant = add_linear_model_plant(
         builder,
         model,
@@ -348,6 +359,7 @@ def export_and_log(
     for port_name, port in exported.items():
         builder.ExportOutput(port, port_name)
     if not record:
+        remove_plumbing(builder, kept=exported.values())
         return {}
     frame_periods_s = {
         f"{name}.{port}": 1.0 / config.cameras[name].frame_rate_hz
@@ -363,7 +375,9 @@ def export_and_log(
         for signal, port in exported.items()
         if record is True or signal in record
     }
-    return _add_loggers(builder, logged)
+    loggers = _add_loggers(builder, logged)
+    remove_plumbing(builder, kept=exported.values())
+    return loggers
 
 
 def build_closed_loop(

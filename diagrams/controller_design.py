@@ -25,7 +25,12 @@ from maskless.systems.control.offset_free_lqg import (
     OffsetFreeLqgWeights,
     design_offset_free_lqg,
 )
-from maskless.systems.control.valve_allocation import SplitRangeAllocation, current_split_allocation
+from maskless.systems.control.valve_allocation import (
+    SplitRangeAllocation,
+    current_split_allocation,
+    static_curve_inverse,
+)
+from maskless.systems.hammerstein_model import HammersteinModel
 from maskless.systems.linear_model import LinearModel
 from maskless.systems.plant.pneumatic_design import pneumatic_allocation, pneumatic_design_model
 from maskless.systems.plant.pneumatic_physics import PneumaticParameters
@@ -92,7 +97,8 @@ def offset_free_design(
     """(design, allocation) of the offset-free LQG as ``config``'s closed loop runs it.
 
     The design is on the nominal pneumatic plant's linearisation, or on the linear model the
-    controller's ``design_model_file`` (or else the linear plant) holds.
+    controller's ``design_model_file`` (or else the model plant) holds; for a Hammerstein model,
+    on its inlet's linear part behind the inverse of its valves' static curves.
 
     Args:
         config: a validated scenario; its controller is taken as ``OffsetFreeLqg()`` unless it
@@ -116,10 +122,16 @@ def offset_free_design(
     if camera_height_m is not None:
         identified = identified.output_subtracted_from(camera_height_m)
     try:
+        if isinstance(identified, HammersteinModel):
+            # The command is the steady height change the maps' inverse opens a valve for; the
+            # design sees the inlet's linear part with unit DC gain behind it.
+            allocation = static_curve_inverse(identified)
+            identified = identified.valve_linear_model(0)
+        else:
+            allocation = current_split_allocation(config.pneumatic.inlet, config.pneumatic.outlet)
         design = design_controller(identified, identified_model_weights(config))
     except ModelError as error:
         raise ModelError(f"controller {shorthand(controller)!r}: {error}") from None
-    allocation = current_split_allocation(config.pneumatic.inlet, config.pneumatic.outlet)
     return design, allocation
 
 

@@ -1,14 +1,15 @@
-"""Exciting the plant open loop for identification: the request, the run and its summary.
+"""Exciting the plant open loop for identification: the run and its summary.
 
-The inlet valve (outlet shut) follows the paper's uniform white noise (Eq. 22-23), a PRBS or a
-Schroeder multisine about an offset current, clipped to the valve's [0, saturation] range as the
-authors clipped theirs, while the cameras, their local Kalman filters and the fusion watch the
-head. The recording has the topics of a closed-loop run (the command topic carries the
-excitation), so `maskless identify` reads it as it is.
+The inlet valve (outlet shut) follows the paper's uniform white noise (Eq. 22-23), a PRBS, a
+Schroeder multisine or a multilevel PRBS about an offset current, clipped to the valve's
+[0, saturation] range as the authors clipped theirs, while the cameras, their local Kalman filters
+and the fusion watch the head. Or both valves move (``valve_drive``): each with its own signal, or
+one signal split between them (``systems.control.valve_pair_excitation``). The recording has the
+topics of a closed-loop run (the command topic carries both valve currents as applied), so
+`maskless identify` reads it as it is. ``diagrams.excitation_design`` holds the request and
+designs the currents.
 """
 
-import dataclasses
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,11 +20,17 @@ from pydrake.systems.primitives import ConstantVectorSource
 from maskless.analysis.metrics import estimate_error_std_m
 from maskless.diagrams.closed_loop import ClosedLoop, LoopDrive, add_plant, assemble_loop
 from maskless.diagrams.controller_design import NominalPneumatic
+
+# SIGNALS is imported "as" itself, re-exported: `maskless workflow` takes it from here.
+from maskless.diagrams.excitation_design import SIGNALS as SIGNALS
+from maskless.diagrams.excitation_design import (
+    ExcitationPlan,
+    ExcitationRequest,
+    plan_excitation,
+)
 from maskless.diagrams.output_folder import RunFolder
-from maskless.diagrams.request_labels import LabelledRequest
 from maskless.diagrams.run_summary import estimation_start_s
 from maskless.diagrams.scenario import PneumaticPlant, Scenario, kind_name
-from maskless.diagrams.scenario_plant import inlet_current_range_a
 from maskless.diagrams.simulation import RUN_FILES, SimulationRun, simulate_loop
 from maskless.errors import ConfigError
 from maskless.systems.control.excitation import (
@@ -31,79 +38,9 @@ from maskless.systems.control.excitation import (
     add_excitation_source,
     clip_to_valve_range,
     clipped_fraction,
-    excitation_signal,
-    sample_count,
     theoretical_uniform_std,
-    validated_band,
 )
-from maskless.systems.limits import DURATION_S, SAMPLE_PERIOD_S
 from maskless.systems.units import a_to_ma, m_to_mm
-
-SIGNALS = ("uniform", "prbs", "multisine")
-
-
-@dataclass(frozen=True)
-class ExcitationRequest(LabelledRequest):
-    """An identification experiment; checked when made.
-
-    Attributes:
-        signal: "uniform" (the paper's, Eq. 22-23), "prbs" or "multisine" (Schroeder phases).
-        amplitude_a: half-width of the current excursion (A).
-        offset_a: the centre current (A); None for mid-way between the inlet's starting and
-            saturation currents.
-        duration_s: the experiment's length (s).
-        sample_period_s: the excitation's and the recording's period (s); None for the
-            controller's.
-        clock_periods: prbs only: samples each bit is held.
-        band_hz: multisine only: (low, high) band in Hz; None for the whole grid up to Nyquist.
-        labels: see ``LabelledRequest``.
-    """
-
-    signal: str = "uniform"
-    amplitude_a: float = 0.050
-    offset_a: float | None = None
-    duration_s: float = 600.0
-    sample_period_s: float | None = None
-    clock_periods: int = 1
-    band_hz: tuple[float, float] | None = None
-
-    def __post_init__(self):
-        """Raises ConfigError for the first field out of range, named as the user named it."""
-
-        def require(condition, field_name, expected):
-            if not condition:
-                value = getattr(self, field_name)
-                raise ConfigError(f"{self.label(field_name)} {value!r}: expected {expected}")
-
-        def finite(value):
-            return isinstance(value, int | float) and math.isfinite(value)
-
-        require(self.signal in SIGNALS, "signal", f"one of {', '.join(SIGNALS)}")
-        require(
-            finite(self.duration_s) and self.duration_s > 0,
-            "duration_s",
-            "a positive number of seconds",
-        )
-        require(DURATION_S.contains(self.duration_s), "duration_s", DURATION_S.expected())
-        positive_current = finite(self.amplitude_a) and self.amplitude_a > 0
-        require(positive_current, "amplitude_a", "a positive current")
-        require(self.offset_a is None or finite(self.offset_a), "offset_a", "a finite current")
-        require(
-            self.sample_period_s is None
-            or (finite(self.sample_period_s) and self.sample_period_s > 0),
-            "sample_period_s",
-            "a positive sample period in s",
-        )
-        require(
-            self.sample_period_s is None or SAMPLE_PERIOD_S.contains(self.sample_period_s),
-            "sample_period_s",
-            SAMPLE_PERIOD_S.expected(),
-        )
-        require(
-            isinstance(self.clock_periods, int) and self.clock_periods >= 1,
-            "clock_periods",
-            "1 or more samples per bit",
-        )
 
 
 @dataclass
@@ -113,15 +50,21 @@ class ExcitationRun:
     Attributes:
         run: the simulated experiment: its signals, recording and plot (``write_mcap``,
             ``plot(path, show_tolerance=False)``).
-        designed: the excitation as designed (A).
-        applied: the excitation clipped to the inlet's range, as applied (A).
-        summary: the signal's statistics (mA) and what the head and fused estimate did (mm).
+        designed: the excitation as designed (A): the inlet's, or the split-range command.
+        applied: the inlet's current, clipped to its range, as applied (A).
+        summary: the signal's statistics (mA), each valve's currents (mA) and what the head and
+            fused estimate did (mm).
+        applied_outlet: the outlet's current as applied (A); None when it stayed shut.
+        designed_outlet: the outlet's own signal as designed (A), in an independent drive; else
+            None.
     """
 
     run: SimulationRun
     designed: ExcitationSignal
     applied: ExcitationSignal
     summary: dict
+    applied_outlet: ExcitationSignal | None = None
+    designed_outlet: ExcitationSignal | None = None
 
 
 def excite(scenario: Scenario, request: ExcitationRequest) -> ExcitationRun:
@@ -132,69 +75,18 @@ def excite(scenario: Scenario, request: ExcitationRequest) -> ExcitationRun:
 
     Raises:
         ConfigError: fewer than two samples, a PRBS with fewer than two bits, a multisine band
-            with no line of the frequency grid, or an excitation that clipping to the inlet's
-            range leaves constant.
+            with no line of the frequency grid, a multilevel hold shorter than a sample, or an
+            excitation that clipping to a driven valve's range leaves constant.
     """
-    return _plan_experiment(scenario, request).run()
+    return _run_plan(plan_excitation(scenario, request))
 
 
-@dataclass(frozen=True)
-class _Experiment:
-    """An excitation designed and checked, not yet run (``excite``'s two halves)."""
-
-    scenario: Scenario
-    designed: ExcitationSignal
-    applied: ExcitationSignal
-    amplitude_a: float
-    offset_a: float
-    valve_range_a: tuple[float, float]
-
-    def run(self) -> ExcitationRun:
-        """Simulates the experiment and summarises it."""
-        run = simulate_loop(build_excitation_loop(self.scenario, self.applied), self.scenario)
-        summary = excitation_summary(
-            self.designed, self.applied, self.amplitude_a, self.offset_a, self.valve_range_a, run
-        )
-        return ExcitationRun(run, self.designed, self.applied, summary)
-
-
-def _plan_experiment(scenario: Scenario, request: ExcitationRequest) -> _Experiment:
-    """The experiment ``request`` asks for, designed and checked (raises as ``excite``)."""
-    start_a, saturation_a = inlet_current_range_a(scenario)
-    valve_range_a = (0.0, saturation_a)
-    offset_a = 0.5 * (start_a + saturation_a) if request.offset_a is None else request.offset_a
-    period_s = request.sample_period_s or scenario.offset_free_lqg.sample_period_s
-    samples = sample_count(request.duration_s, period_s)
-    if samples < 2:
-        raise ConfigError(
-            f"{request.label('duration_s')} {request.duration_s}: expected at least two samples "
-            f"of {period_s:.6g} s"
-        )
-    if request.signal == "prbs" and not request.clock_periods <= samples // 2:
-        raise ConfigError(
-            f"{request.label('clock_periods')} {request.clock_periods}: expected 1 to "
-            f"{samples // 2} (half the {samples} samples), so the PRBS has at least two bits"
-        )
-    designed, applied = design_excitation(
-        request.signal,
-        request.amplitude_a,
-        offset_a,
-        request.duration_s,
-        period_s,
-        scenario.random_seed,
-        valve_range_a,
-        clock_periods=request.clock_periods,
-        band_hz=request.band_hz,
-        band_label=request.label("band_hz"),
-    )
-    if np.ptp(applied.values) == 0.0:
-        raise ConfigError(
-            f"offset {a_to_ma(offset_a):g} mA ± amplitude {a_to_ma(request.amplitude_a):g} mA: "
-            f"clipped to the inlet's [{a_to_ma(valve_range_a[0]):g}, "
-            f"{a_to_ma(valve_range_a[1]):g}] mA nothing of the excitation is left"
-        )
-    experiment = dataclasses.replace(scenario, duration_s=request.duration_s)
-    return _Experiment(experiment, designed, applied, request.amplitude_a, offset_a, valve_range_a)
+def _run_plan(plan: ExcitationPlan) -> ExcitationRun:
+    """Simulates the planned experiment and summarises it."""
+    loop = build_excitation_loop(plan.scenario, plan.inlet, outlet=plan.outlet)
+    run = simulate_loop(loop, plan.scenario)
+    summary = excitation_summary(plan, run)
+    return ExcitationRun(run, plan.designed, plan.inlet, summary, plan.outlet, plan.designed_outlet)
 
 
 def excite_to_files(
@@ -212,9 +104,9 @@ def excite_to_files(
     Raises:
         ConfigError: as ``excite``, or OUT refused.
     """
-    experiment = _plan_experiment(scenario, request)
+    plan = plan_excitation(scenario, request)
     with RunFolder(out, RUN_FILES, overwrite=overwrite) as folder:
-        excited = experiment.run()
+        excited = _run_plan(plan)
         excited.run.write_mcap(folder.temporary("run.mcap"))
         excited.run.plot(folder.temporary("run.png"), show_tolerance=False)
         files = {"recording": "run.mcap", "plot": "run.png"}
@@ -225,23 +117,37 @@ def excite_to_files(
 
 
 def build_excitation_loop(
-    config: Scenario, signal: ExcitationSignal, record: bool = True
+    config: Scenario,
+    signal: ExcitationSignal,
+    record: bool = True,
+    outlet: ExcitationSignal | None = None,
 ) -> ClosedLoop:
-    """The plant driven open loop by ``signal`` on its inlet (outlet shut), the head watched.
+    """The plant driven open loop by ``signal`` on its inlet, the head watched.
 
-    The cameras, local filters and fusion watch the head; outputs and logs are as
-    ``build_closed_loop``'s, logged at the signal's sample period. ``controller`` is "excitation",
-    and model and design are None.
+    The outlet follows ``outlet`` (sampled as ``signal``), or stays shut when it is None. The
+    cameras, local filters and fusion watch the head; outputs and logs are as
+    ``build_closed_loop``'s, logged at the signal's sample period. ``controller`` is
+    "excitation", and model and design are None.
     """
     builder = DiagramBuilder()
     nominal = NominalPneumatic.of(config) if isinstance(config.plant, PneumaticPlant) else None
     plant = add_plant(builder, config, nominal)
-    inlet = add_excitation_source(builder, signal, name="excitation")
-    outlet = builder.AddNamedSystem("outlet_valve_shut", ConstantVectorSource([0.0]))
+    if outlet is None:
+        inlet_port = add_excitation_source(builder, signal, name="excitation")
+        shut = builder.AddNamedSystem("outlet_valve_shut", ConstantVectorSource([0.0]))
+        outlet_port = shut.get_output_port()
+    else:
+        if outlet.sample_period_s != signal.sample_period_s:
+            raise ConfigError(
+                f"outlet sampled every {outlet.sample_period_s} s: expected the inlet's "
+                f"{signal.sample_period_s} s"
+            )
+        inlet_port = add_excitation_source(builder, signal, name="inlet_excitation")
+        outlet_port = add_excitation_source(builder, outlet, name="outlet_excitation")
     resting = builder.AddNamedSystem("reference", ConstantVectorSource([plant.start_height_m]))
     drive = LoopDrive(
-        inlet,
-        outlet.get_output_port(),
+        inlet_port,
+        outlet_port,
         resting.get_output_port(),
         signal.sample_period_s,
         "excitation",
@@ -251,84 +157,80 @@ def build_excitation_loop(
     )
 
 
-def design_excitation(
-    kind: str,
-    amplitude_a: float,
-    offset_a: float,
-    duration_s: float,
-    sample_period_s: float,
-    seed: int,
-    valve_range_a: tuple[float, float],
-    clock_periods: int = 1,
-    band_hz: tuple[float, float] | None = None,
-    band_label: str = "band_hz",
-) -> tuple[ExcitationSignal, ExcitationSignal]:
-    """(designed, clipped to ``valve_range_a``) excitation of the named kind."""
-    options = {}
-    if kind == "prbs":
-        options["clock_periods"] = clock_periods
-    if kind == "multisine" and band_hz is not None:
-        nyquist_hz = 0.5 / sample_period_s
-        try:
-            validated_band(band_hz, nyquist_hz)
-        except ValueError:  # said again in the request's terms
-            raise ConfigError(
-                f"{band_label} {band_hz[0]:g}:{band_hz[1]:g}: expected 0 < LOW <= HIGH < the "
-                f"Nyquist frequency, {nyquist_hz:g} Hz"
-            ) from None
-        options["frequency_band_hz"] = band_hz
-    designed = excitation_signal(
-        kind,
-        amplitude=amplitude_a,
-        duration_s=duration_s,
-        sample_period_s=sample_period_s,
-        seed=seed,
-        offset=offset_a,
-        **options,
-    )
-    return designed, clip_to_valve_range(designed, *valve_range_a)
+def _valve_summary(applied: ExcitationSignal | None, clipped: float) -> dict:
+    """One valve's currents as applied (mA): range, mean, std, and the fraction clipped."""
+    values = np.zeros(1) if applied is None else applied.values
+    return {
+        "driven": applied is not None,
+        "range_ma": [a_to_ma(float(values.min())), a_to_ma(float(values.max()))],
+        "mean_ma": a_to_ma(float(np.mean(values))),
+        "std_ma": a_to_ma(float(np.std(values))),
+        "clipped_fraction": clipped,
+    }
 
 
-def excitation_summary(
-    designed: ExcitationSignal,
-    applied: ExcitationSignal,
-    amplitude_a: float,
-    offset_a: float,
-    valve_range_a: tuple[float, float],
-    run: SimulationRun,
-) -> dict:
-    """The signal's statistics (mA) and what the head and fused estimate did (mm)."""
+def excitation_summary(plan: ExcitationPlan, run: SimulationRun) -> dict:
+    """The signal's statistics (mA), each valve's (mA) and what the head and estimate did (mm).
+
+    The top-level statistics are the designed signal's (independent: the inlet's; split-range:
+    the command's, clipped to its range for ``applied_*``); ``valves`` holds what each valve got.
+    """
+    designed = plan.designed
+    applied = clip_to_valve_range(designed, *plan.designed_range_a)
     times_s, head = run.signals["head_height_m"].times_s, run.signals["head_height_m"].values[0]
     fused = run.signals["fusion.estimated_state"].values[0]
     start_s = estimation_start_s(run.scenario, times_s)
     summary = {
         "plant": run.closed_loop.plant,
         "signal": designed.kind,
+        "valve_drive": plan.request.valve_drive,
         "samples": applied.num_samples,
         "sample_period_s": applied.sample_period_s,
-        "amplitude_ma": a_to_ma(amplitude_a),
-        "offset_ma": a_to_ma(offset_a),
+        "amplitude_ma": a_to_ma(plan.amplitude_a),
+        "offset_ma": a_to_ma(plan.offset_a),
         "mean_ma": a_to_ma(float(np.mean(designed.values))),
         "std_ma": a_to_ma(designed.std()),
         "crest_factor": designed.crest_factor(),
-        "clipped_fraction": clipped_fraction(designed, *valve_range_a),
+        "clipped_fraction": clipped_fraction(designed, *plan.designed_range_a),
         "applied_std_ma": a_to_ma(applied.std()),
         "applied_crest_factor": applied.crest_factor(),
+        "valves": {
+            "inlet": _valve_summary(plan.inlet, plan.clipped["inlet"]),
+            "outlet": _valve_summary(plan.outlet, plan.clipped["outlet"]),
+        },
         "head_height_mm": {"min": m_to_mm(float(head.min())), "max": m_to_mm(float(head.max()))},
         "fused_error_std_mm": m_to_mm(estimate_error_std_m(times_s, fused, head, start_s)),
         "estimation_start_s": start_s,
         "wall_time_s": run.wall_time_s,
     }
     if designed.kind == "uniform":
-        summary["uniform_theoretical_std_ma"] = a_to_ma(theoretical_uniform_std(amplitude_a))
+        summary["uniform_theoretical_std_ma"] = a_to_ma(theoretical_uniform_std(plan.amplitude_a))
     return summary
+
+
+_DRIVE_WORDS = {
+    "inlet": "inlet",
+    "independent": "inlet and outlet (a signal each)",
+    "split-range": "inlet and outlet (one split-range command)",
+}
+
+
+def _valve_line(valve: str, valve_summary: dict) -> str:
+    if not valve_summary["driven"]:
+        return f"  {valve}: shut"
+    low_ma, high_ma = valve_summary["range_ma"]
+    return (
+        f"  {valve}: {low_ma:.1f}-{high_ma:.1f} mA, std {valve_summary['std_ma']:.2f} mA, "
+        f"{100 * valve_summary['clipped_fraction']:.1f} % of samples clipped"
+    )
 
 
 def format_excitation_summary(summary: dict) -> str:
     """The summary as text a person reads."""
     lines = [
-        f"maskless excite: {summary['signal']} on the {summary['plant']} plant's inlet, "
-        f"{summary['samples']} samples at {summary['sample_period_s']:.4g} s",
+        f"maskless excite: {summary['signal']} on the {summary['plant']} plant's "
+        f"{_DRIVE_WORDS[summary['valve_drive']]}, {summary['samples']} samples at "
+        f"{summary['sample_period_s']:.4g} s",
         f"  offset {summary['offset_ma']:.1f} mA, amplitude {summary['amplitude_ma']:.1f} mA, "
         f"mean {summary['mean_ma']:.1f} mA",
         f"  std {summary['std_ma']:.2f} mA"
@@ -340,6 +242,7 @@ def format_excitation_summary(summary: dict) -> str:
         f"  crest factor {summary['crest_factor']:.3f} designed, "
         f"{summary['applied_crest_factor']:.3f} after clipping "
         f"({100 * summary['clipped_fraction']:.1f} % of samples clipped)",
+        *(_valve_line(valve, s) for valve, s in summary["valves"].items()),
         f"  head height {summary['head_height_mm']['min']:.2f}-"
         f"{summary['head_height_mm']['max']:.2f} mm; fused estimate error std (from "
         f"t = {summary['estimation_start_s']:g} s) "

@@ -17,9 +17,19 @@ import numpy as np
 import yaml
 
 from maskless.analysis.identification import report as identification_report
-from maskless.analysis.identification.fit_plots import plot_compare, plot_residuals
+from maskless.analysis.identification.data_diagnostics import (
+    diagnose_record,
+    is_constant,
+    refuse_constant,
+)
+from maskless.analysis.identification.diagnostics_text import (
+    format_diagnostics,
+    format_input_diagnostics,
+)
+from maskless.analysis.identification.fit_plots import plot_compare, plot_record, plot_residuals
 from maskless.analysis.identification.model_file import (
     MODEL_FILE_UNITS,
+    input_models_from_contents,
     model_file_contents,
     model_from_contents,
 )
@@ -31,11 +41,11 @@ from maskless.analysis.identification.records import (
     read_mcap_signals,
 )
 from maskless.analysis.identification.report import METHODS, FittedModel, Part
-from maskless.analysis.identification.subspace import default_horizon
+from maskless.analysis.identification.subspace import minimum_samples as subspace_minimum
 from maskless.diagrams.background import BackgroundTask
 from maskless.diagrams.output_folder import output_folder
 from maskless.diagrams.request_labels import LabelledRequest
-from maskless.errors import ConfigError, RecordError
+from maskless.errors import ConfigError, ModelError, RecordError
 from maskless.recording import COMMAND_TOPIC, FUSION_TOPIC
 from maskless.systems.limits import SAMPLE_PERIOD_S
 from maskless.systems.linear_model import LinearModel
@@ -46,8 +56,20 @@ DEFAULT_MCAP_OUTPUT = f"{FUSION_TOPIC}:head_height_m"
 DETREND_MODES = ("mean", "linear", "none")
 # Records at least this long report the optimiser's progress on stderr.
 _PROGRESS_MIN_SAMPLES = 50_000
-# A maskless recording's field names end in their SI unit.
-_FIELD_UNITS = {"_a": "A", "_m": "m"}
+# A maskless recording's field names end in their SI unit (longest suffix first: "_m_s" is m/s).
+_FIELD_UNITS = {"_m_s": "m/s", "_pa": "Pa", "_a": "A", "_m": "m"}
+# A CSV carries no units: the robot's CSV convention (valve current in mA, head distance in mm,
+# as the authors' record) is assumed unless --input-unit/--output-unit say otherwise.
+CSV_UNITS = ("mA", "mm")
+# Where each unit came from, as the report says it.
+UNIT_GIVEN, UNIT_FROM_FIELD, UNIT_CSV_DEFAULT, UNIT_NOT_GIVEN = (
+    "given",
+    "from the recording's field name",
+    "assumed: a CSV carries no units; the robot's CSV convention",
+    "not given",
+)
+# A unit string is shown as given, on one line of a report or a plot's label.
+_UNIT_MAX_CHARS = 32
 # How far --ts may be from a recording's own sample period before it is refused.
 _TS_TOLERANCE = 0.01
 
@@ -64,6 +86,8 @@ class IdentificationRequest(LabelledRequest):
         orders: the model orders to fit.
         method: "pem", "armax", "arx" or "n4sid".
         input_column: CSV column (name or index) or MCAP ``TOPIC:FIELD``; None for the default.
+            Several inputs (the inlet and the outlet valve) as "COLUMN,COLUMN" or
+            "TOPIC:FIELD,FIELD" (``records.VALVE_CURRENTS_FIELDS``): an m-input model.
         output_column: likewise for the output.
         estimation: the part the models are fitted on: fractions ("0:0.6") or sample indices.
         validation: the part they are judged on.
@@ -71,8 +95,11 @@ class IdentificationRequest(LabelledRequest):
             trend, or "none".
         k_step: also report the K-step-ahead prediction fit; None for none.
         estimate_initial_state: estimate x(0) with the model (else fix it at zero).
-        input_unit: the input's unit (m, mm, A, mA); None for mA (CSV) or the field's unit.
-        output_unit: likewise for the output (None: mm for CSV).
+        input_unit: the input's unit, any string (e.g. "mA", "degC", "V"), shown as given; None
+            for mA (CSV, assumed) or the MCAP field's unit. Only m, mm, A and mA convert to
+            the SI a design loads (``MODEL_FILE_UNITS``). With several inputs, one unit for all
+            or "UNIT,UNIT" one each.
+        output_unit: likewise for the output (None: mm for CSV, assumed).
         labels: see ``LabelledRequest``.
     """
 
@@ -117,9 +144,15 @@ class IdentificationRequest(LabelledRequest):
             )
         for name in ("input_unit", "output_unit"):
             unit = getattr(self, name)
-            if unit is not None and unit not in MODEL_FILE_UNITS:
+            if unit is not None and (
+                not isinstance(unit, str)
+                or not unit.strip()
+                or not unit.isprintable()
+                or len(unit) > _UNIT_MAX_CHARS
+            ):
                 raise ConfigError(
-                    f"{label(name)} {unit!r}: expected one of {', '.join(MODEL_FILE_UNITS)}"
+                    f"{label(name)} {unit!r}: expected a unit, printable text of 1 to "
+                    f"{_UNIT_MAX_CHARS} characters (e.g. mA, mm, degC)"
                 )
         if self.k_step is not None and self.k_step < 1:
             raise ConfigError(f"{label('k_step')} {self.k_step}: expected a positive integer")
@@ -135,7 +168,10 @@ class IdentificationRun:
         fitted_models: one per order, in the request's order.
         parts: the detrended estimation and validation parts.
         offsets: what detrending removed (and the detrended record).
-        units: (input unit, output unit).
+        units: (input unit, output unit), as given or read; with m inputs the first is a tuple,
+            one unit per input.
+        signals: (input, output) of the whole record as read, before detrending.
+        input_names: the inputs' names (one per column of an m-input record; one for one input).
     """
 
     request: IdentificationRequest
@@ -144,6 +180,8 @@ class IdentificationRun:
     parts: list[Part]
     offsets: Detrended
     units: tuple[str, str]
+    signals: tuple[np.ndarray, np.ndarray] | None = None
+    input_names: tuple[str, ...] = ("input",)
 
     @property
     def model(self) -> LinearModel:
@@ -151,7 +189,17 @@ class IdentificationRun:
 
         Its operating point is what detrending removed, in the record's units, as a model file
         written by `maskless identify` loads.
+
+        Raises:
+            ModelError: an m-input model, which the single-input ``LinearModel`` (and so every
+                design and plant) cannot hold; its per-input models are in
+                ``fitted_models[0].input_models``.
         """
+        if self.fitted_models[0].model is None:
+            raise ModelError(
+                f"a model of {len(self.input_names)} inputs ({', '.join(self.input_names)}): "
+                "the designs and plants drive one input; see fitted_models[0].input_models"
+            )
         return dataclasses.replace(
             self.fitted_models[0].model,
             operating_input=self.offsets.input_offset,
@@ -162,16 +210,17 @@ class IdentificationRun:
 
 
 def _field_unit(topic_and_field: str) -> str:
+    """The unit a maskless field's name ends in; "" (not given) for a name without one."""
     for suffix, unit in _FIELD_UNITS.items():
         if topic_and_field.endswith(suffix):
             return unit
-    return "unknown"
+    return ""
 
 
 def read_record(
     request: IdentificationRequest,
-) -> tuple[np.ndarray, np.ndarray, tuple[str, str]]:
-    """The input and output records and their units.
+) -> tuple[np.ndarray, np.ndarray, tuple[str | None, str | None]]:
+    """The input and output records and their units (None: a CSV, which carries none).
 
     Records that cannot be used are refused with the file named.
     """
@@ -187,6 +236,8 @@ def read_record(
         else:
             ((input_times, u),) = read_mcap_signals(request.input, input_field)
             ((output_times, y),) = read_mcap_signals(output_path, output_field)
+        if y.ndim != 1:  # "TOPIC:FIELD,FIELD" reads columns: several inputs, one output
+            raise RecordError(f"{output_path}: {output_field!r}: expected one field (one output)")
         common, input_index, output_index = np.intersect1d(
             input_times, output_times, return_indices=True
         )
@@ -205,24 +256,121 @@ def read_record(
                 f"{common[gap] * 1e-9:.3f} s and {common[gap + 1] * 1e-9:.3f} s; a record with "
                 "gaps cannot be identified as one sequence"
             )
-        units = (_field_unit(input_field), _field_unit(output_field))
+        topic, _, fields = input_field.rpartition(":")
+        input_units = tuple(_field_unit(f"{topic}:{field}") for field in fields.split(","))
+        units = (input_units[0] if u.ndim == 1 else input_units, _field_unit(output_field))
         return u[input_index], y[output_index], units
     if request.output is None:
         raise RecordError(f"{label('output')} is required when {label('input')} is a CSV file")
-    u = read_csv_signal(request.input, request.input_column)
+    columns = _input_columns(request)
+    u = (
+        read_csv_signal(request.input, request.input_column)
+        if len(columns) == 1
+        else _stack_columns(request.input, columns)
+    )
     y = read_csv_signal(request.output, request.output_column)
-    if u.size != y.size:
+    if u.shape[0] != y.size:
         raise RecordError(
-            f"{request.input} has {u.size} values but {request.output} has {y.size}; expected one "
-            "output per input"
+            f"{request.input} has {u.shape[0]} values but {request.output} has {y.size}; expected "
+            "one output per input"
         )
-    return u, y, ("mA", "mm")
+    return u, y, (None, None)
 
 
-def minimum_samples(orders: list[int], method: str) -> int:
+def _input_columns(request: IdentificationRequest) -> list[str | None]:
+    """The input's columns (CSV) or fields (MCAP): "A,B" names several inputs."""
+    column = request.input_column
+    if column is None:
+        return [None]
+    return column.rpartition(":")[2].split(",") if "," in column else [column]
+
+
+def _stack_columns(path: Path, columns: list[str]) -> np.ndarray:
+    """Several CSV columns of one file as an (N, m) input, each as ``read_csv_signal`` reads it."""
+    signals = [read_csv_signal(path, column) for column in columns]
+    if len({signal.size for signal in signals}) != 1:
+        raise RecordError(
+            f"{path}: columns {columns} have {[s.size for s in signals]} values: expected one "
+            "length"
+        )
+    return np.column_stack(signals)
+
+
+def input_names(request: IdentificationRequest, inputs: int) -> tuple[str, ...]:
+    """The inputs' names: their CSV columns or MCAP fields, or "input i" (arrays, indices)."""
+    if inputs == 1:
+        return ("input",)
+    columns = _input_columns(request)
+    if len(columns) != inputs:
+        return tuple(f"input {i + 1}" for i in range(inputs))
+    return tuple(f"column {column}" if column.isdigit() else column.strip() for column in columns)
+
+
+def _sources(request: IdentificationRequest) -> tuple[str, str]:
+    """Where the input and output came from, as messages name them."""
+    if request.input is None:
+        return "u", "y"
+    output = request.output or request.input
+    if request.input.suffix == ".mcap" or output.suffix == ".mcap":
+        fields = (
+            request.input_column or DEFAULT_MCAP_INPUT,
+            request.output_column or DEFAULT_MCAP_OUTPUT,
+        )
+        return f"{request.input}:{fields[0]}", f"{output}:{fields[1]}"
+    columns = (request.input_column, request.output_column)
+    return tuple(
+        f"{path} column {column}" if column is not None else str(path)
+        for path, column in zip((request.input, output), columns, strict=True)
+    )
+
+
+def _units(
+    request: IdentificationRequest, read: tuple[str | None, str | None]
+) -> tuple[tuple[str, str], tuple[str, str]]:
+    """(units, where each came from): the request's, else the record's, else the CSV's."""
+    chosen = []
+    for given, from_record, csv_default in zip(
+        (request.input_unit, request.output_unit), read, CSV_UNITS, strict=True
+    ):
+        if given is not None:
+            chosen.append((given, UNIT_GIVEN))
+        elif from_record is None:
+            chosen.append((csv_default, UNIT_CSV_DEFAULT))
+        else:
+            chosen.append((from_record, UNIT_FROM_FIELD if from_record else UNIT_NOT_GIVEN))
+    (input_unit, input_origin), (output_unit, output_origin) = chosen
+    return (input_unit, output_unit), (input_origin, output_origin)
+
+
+def _input_units(
+    request: IdentificationRequest, read: tuple[str, ...] | None, inputs: int
+) -> tuple[tuple[str, ...], str]:
+    """With m inputs, (their units, where they came from).
+
+    --input-unit gives "UNIT" for all or "UNIT,UNIT" one each; else the recording's fields' units,
+    else (a CSV) the robot's CSV convention.
+    """
+    given, label = request.input_unit, request.label("input_unit")
+    if given is None and read is None:
+        return (CSV_UNITS[0],) * inputs, UNIT_CSV_DEFAULT
+    if given is None:
+        read = (read,) * inputs if isinstance(read, str) else read  # "" from arrays: not given
+        return read, UNIT_FROM_FIELD if all(read) else UNIT_NOT_GIVEN
+    units = tuple(unit.strip() for unit in given.split(","))
+    if len(units) == 1:
+        return units * inputs, UNIT_GIVEN
+    if len(units) != inputs or not all(units):
+        raise ConfigError(
+            f"{label} {given!r}: expected one unit for all {inputs} inputs or {inputs} "
+            "comma-separated units"
+        )
+    return units, UNIT_GIVEN
+
+
+def minimum_samples(orders: list[int], method: str, inputs: int = 1) -> int:
     """The fewest samples a part needs for the largest order (N4SID's Hankel matrices need more)."""
     largest = max(orders)
-    return 12 * default_horizon(largest) if method == "n4sid" else 10 * largest
+    return subspace_minimum(largest, inputs) if method == "n4sid" else 10 * largest
 
 
 def identify_record(request: IdentificationRequest) -> "IdentificationRun":
@@ -246,7 +394,8 @@ def identify(
     """Identifies a model of ``y`` from ``u``, judged as `maskless identify` judges it.
 
     Args:
-        u: the input samples (say a valve current, A).
+        u: the input samples (say a valve current, A): (N,), or (N, m) for m inputs (say the
+            inlet and the outlet valve currents, A).
         y: the output samples (say the head height, m), one per input sample.
         sample_period_s: the samples' period (s).
         order: the model order.
@@ -261,28 +410,50 @@ def identify(
         input=None, ts=sample_period_s, orders=(order,), method=method, **options
     )
     u, y = np.asarray(u, dtype=float), np.asarray(y, dtype=float)
-    if u.shape != y.shape or u.ndim != 1:
+    if y.ndim != 1 or u.ndim not in (1, 2) or u.shape[0] != y.size or 0 in u.shape[1:]:
         raise RecordError(
-            f"u and y: expected two 1-D arrays of one length, got shapes {u.shape} and {y.shape}"
+            f"u and y: expected y 1-D and u 1-D (one input) or (N, m) (m inputs) of one length, "
+            f"got shapes {u.shape} and {y.shape}"
         )
+    if u.ndim == 2 and u.shape[1] == 1:
+        u = u[:, 0]
     if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
         raise RecordError("u and y: expected finite numbers only")
     return identify_signals(u, y, request, ("", ""))
 
 
 def identify_signals(
-    u: np.ndarray, y: np.ndarray, request: IdentificationRequest, units: tuple[str, str]
+    u: np.ndarray,
+    y: np.ndarray,
+    request: IdentificationRequest,
+    units: tuple[str | None, str | None],
 ) -> "IdentificationRun":
-    """``identify_record`` on signals already read (``units``: as read, before the request's)."""
+    """``identify_record`` on signals already read.
+
+    ``units``: as read, before the request's ("" not given; None: a CSV's, which carries none).
+    """
     label = request.label
     orders = list(request.orders)
-    units = (request.input_unit or units[0], request.output_unit or units[1])
-    if np.ptp(u) == 0:
-        source = request.input or "u"
-        raise RecordError(f"{source}: the input is constant, so it explains nothing to fit")
+    inputs = 1 if u.ndim == 1 else u.shape[1]
+    names = input_names(request, inputs)
+    sources = _sources(request)
+    if inputs == 1:
+        units, unit_origins = _units(request, units)
+        for signal, name, source, unit in zip(
+            (u, y), ("input", "output"), sources, units, strict=True
+        ):
+            refuse_constant(signal, name, source, unit)
+    else:
+        input_units, input_origin = _input_units(request, units[0], inputs)
+        # The output's unit as for one input (the input's part of _units is not used).
+        (_, output_unit), (_, output_origin) = _units(request, ("", units[1]))
+        units, unit_origins = (input_units, output_unit), (input_origin, output_origin)
+        for column, name, unit in zip(u.T, names, input_units, strict=True):
+            refuse_constant(column, f"input {name}", sources[0], unit)
+        refuse_constant(y, "output", sources[1], output_unit)
     estimation_slice = parse_range(request.estimation, y.size, label("estimation"))
     validation_slice = parse_range(request.validation, y.size, label("validation"))
-    needed = minimum_samples(orders, request.method)
+    needed = minimum_samples(orders, request.method, inputs)
     for name, part in (("estimation", estimation_slice), ("validation", validation_slice)):
         flag = label(name)
         if part.stop - part.start < needed:
@@ -294,12 +465,12 @@ def identify_signals(
             raise RecordError(f"{label('k_step')} {request.k_step}: longer than the {flag} part")
         # Every fit figure divides by the output's spread over the part (the naive baseline's
         # from its second sample): a constant output leaves them undefined.
-        if np.ptp(y[part][1:]) == 0:
+        if is_constant(y[part][1:]):
             raise RecordError(
-                f"{flag} selects samples {part.start}:{part.stop} of {request.output or 'y'}, "
+                f"{flag} selects samples {part.start}:{part.stop} of {sources[1]}, "
                 "where the output is constant: no fit is defined on it"
             )
-    offsets = detrend(u, y, request.detrend)
+    offsets = _detrend(u, y, request.detrend)
     parts = [
         Part("estimation", offsets.u[estimation_slice], offsets.y[estimation_slice]),
         Part("validation", offsets.u[validation_slice], offsets.y[validation_slice]),
@@ -322,6 +493,13 @@ def identify_signals(
         progress=report_progress if long_record else None,
         k_step=request.k_step,
         overlap=overlap,
+        record_diagnostics=diagnose_record(u, y, request.detrend, units)
+        if inputs == 1
+        else tuple(
+            diagnose_record(column, y, request.detrend, (unit, units[1]))
+            for column, unit in zip(u.T, units[0], strict=True)
+        ),
+        input_names=names if inputs > 1 else None,
     )
     report["record"] = {
         "samples": int(y.size),
@@ -331,8 +509,25 @@ def identify_signals(
         "input_offset": offsets.input_offset,
         "output_offset": offsets.output_offset,
         "units": {"input": units[0], "output": units[1]},
+        "units_from": {"input": unit_origins[0], "output": unit_origins[1]},
+        **({"inputs": list(names)} if inputs > 1 else {}),
     }
-    return IdentificationRun(request, report, fitted_models, parts, offsets, units)
+    return IdentificationRun(request, report, fitted_models, parts, offsets, units, (u, y), names)
+
+
+def _detrend(u: np.ndarray, y: np.ndarray, mode: str) -> Detrended:
+    """``records.detrend``, with m inputs column by column (offsets and slopes one per input)."""
+    if u.ndim == 1:
+        return detrend(u, y, mode)
+    columns = [detrend(column, y, mode) for column in u.T]
+    return Detrended(
+        u=np.column_stack([column.u for column in columns]),
+        y=columns[0].y,
+        input_offset=tuple(column.input_offset for column in columns),
+        output_offset=columns[0].output_offset,
+        input_slope=tuple(column.input_slope for column in columns),
+        output_slope=columns[0].output_slope,
+    )
 
 
 def identify_to_files(request: IdentificationRequest, out: str | Path) -> dict:
@@ -341,23 +536,59 @@ def identify_to_files(request: IdentificationRequest, out: str | Path) -> dict:
 
 
 def write_identification(identified: "IdentificationRun", out: str | Path) -> dict:
-    """Writes OUT/report.json, one model file per order and the compare and residual plots.
+    """Writes OUT/report.json, one model file per order, and the record, compare, residual plots.
 
-    The plots are drawn on the second core meanwhile. Returns the report with each model's file
-    named.
+    The record plot is record.png; the others are one per model. The plots are drawn on the
+    second core meanwhile. Returns the report with each model's file named.
     """
     fitted_models, parts, report = identified.fitted_models, identified.parts, identified.report
     offsets, units, request = identified.offsets, identified.units, identified.request
     out = output_folder(out)
+    several = not isinstance(units[0], str)
+    named_units = (
+        list(zip(identified.input_names, units[0], strict=True))
+        if several
+        else [("input", units[0])]
+    ) + [("output", units[1])]
+    convertible = all(unit in MODEL_FILE_UNITS for _, unit in named_units)
+    if not convertible:
+        report["warnings"].append(
+            "the units ("
+            + ", ".join(
+                f"{name} {unit!r}" if unit else f"{name} not given" for name, unit in named_units
+            )
+            + ") are not all among "
+            f"{', '.join(MODEL_FILE_UNITS)}: the model files hold them as given, and the designs "
+            "and plants, which work in SI, refuse them"
+        )
 
     def plots():
+        if identified.signals is not None and not several:
+            plot_record(
+                out / "record.png",
+                *identified.signals,
+                request.ts,
+                units,
+                report["diagnostics"]["record"],
+            )
+        if identified.signals is not None and several:  # a record plot per input
+            u, y = identified.signals
+            for index, name in enumerate(identified.input_names):
+                plot_record(
+                    out / f"record_input{index + 1}.png",
+                    u[:, index],
+                    y,
+                    request.ts,
+                    (units[0][index], units[1]),
+                    report["diagnostics"]["inputs"][name]["record"],
+                )
         for fitted in fitted_models:
-            stem = f"{fitted.method}_order{fitted.model.order}"
+            stem = f"{fitted.method}_order{fitted.order}"
             plot_compare(out / f"compare_{stem}.png", fitted, parts, request.ts, units[1])
             plot_residuals(out / f"residuals_{stem}.png", fitted, parts)
 
     report["removed_stale_files"] = remove_stale_outputs(
-        out, [f"{fitted.method}_order{fitted.model.order}" for fitted in fitted_models]
+        out, [f"{fitted.method}_order{fitted.order}" for fitted in fitted_models]
     )
     plotting = BackgroundTask(f"plotting into {out}", plots)
     linear = request.detrend == "linear"
@@ -372,9 +603,12 @@ def write_identification(identified: "IdentificationRun", out: str | Path) -> di
             trend_slopes_per_sample=(offsets.input_slope, offsets.output_slope) if linear else None,
             verdict=entry["verdict"],
         )
-        path = out / f"model_{fitted.method}_order{fitted.model.order}.yaml"
-        # Read back as `--plant identified:` would, so no run writes a file the loader refuses.
-        model_from_contents(contents, str(path))
+        path = out / f"model_{fitted.method}_order{fitted.order}.yaml"
+        # Read back as `--plant identified:` would, so no run writes a file the loader refuses
+        # (units it cannot convert to SI are named in the warnings above instead); an m-input
+        # file, which the designs refuse, is checked input by input.
+        if convertible:
+            (input_models_from_contents if several else model_from_contents)(contents, str(path))
         path.write_text(yaml.safe_dump(contents, sort_keys=False))
         entry["model_file"] = str(path)
     (out / "report.json").write_text(json.dumps(report, indent=1))
@@ -406,7 +640,8 @@ def remove_stale_outputs(out: Path, stems: list[str]) -> list[str]:
 
 def format_identification_report(report: dict, out: str | Path) -> str:
     """The report as lines a person reads."""
-    lines = []
+    several = "inputs" in report["diagnostics"]
+    lines = format_input_diagnostics(report) if several else format_diagnostics(report)
     for model in report["models"]:
         stability = "stable" if model["stable"] else "UNSTABLE"
         lines.append(
@@ -429,6 +664,15 @@ def format_identification_report(report: dict, out: str | Path) -> str:
             "  margins on validation (fit points): "
             + ", ".join(f"{name} {value:+.3f}" for name, value in margins.items())
         )
+        for name, part in model.get("input_contributions", {}).get("validation", {}).items():
+            gain = "none (integrating)" if part["dc_gain"] is None else f"{part['dc_gain']:.6g}"
+            lines.append(
+                f"  input {name}: DC gain {gain}; on validation sim fit "
+                f"{part['fit_percent_sim_alone']:.1f} % with it alone, "
+                f"{part['fit_percent_sim_without']:.1f} % without it "
+                f"({part['fit_points_lost_without']:+.1f} points lost), its own part carries "
+                f"{part['output_variance_share']:.0%} of the output's variance"
+            )
         if "warning" in model:
             lines.append(f"  WARNING: {model['warning']}")
     naive = report["baselines"]["naive_last_value"]

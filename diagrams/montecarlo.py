@@ -44,7 +44,7 @@ from maskless.analysis.metrics import tracking_metrics
 from maskless.analysis.trial_table import TrialTableWriter, read_trial_rows, write_trial_table
 from maskless.diagrams.closed_loop import ClosedLoop, build_closed_loop
 from maskless.diagrams.controller_design import NominalPneumatic
-from maskless.diagrams.output_folder import output_folder
+from maskless.diagrams.output_folder import FolderLock, output_folder
 from maskless.diagrams.population import (
     MonteCarloConfig,
     Patient,
@@ -294,18 +294,25 @@ def run_sweep(request: SweepRequest) -> dict:
 
     Raises:
         ConfigError: the folder holds a sweep of another configuration (and no ``restart``),
-            ``workers`` is not positive or given with a scheduler, or the scheduler cannot be
-            reached.
+            another sweep is writing it (naming its pid), ``workers`` is not positive or given
+            with a scheduler, or the scheduler cannot be reached.
         SweepError: a worker process died; the trials finished before are on disk.
     """
-    from maskless.analysis.population_summary import summarize_population
-
-    config = request.config
     if request.workers is not None and request.workers < 1:
         raise ConfigError(f"workers = {request.workers}: expected at least 1")
     if request.workers is not None and request.scheduler:
         raise ConfigError("workers: the cluster's workers run a sweep with a scheduler; not both")
     out = output_folder(request.out)
+    # Two sweeps appending to one table would interleave their rows.
+    with FolderLock(out):
+        return _run_in(out, request)
+
+
+def _run_in(out: Path, request: SweepRequest) -> dict:
+    """``run_sweep`` in the folder ``out``, which it holds the lock of."""
+    from maskless.analysis.population_summary import summarize_population
+
+    config = request.config
     table = out / TABLE_NAME
     key = fingerprint(config)
     _claim_folder(out, config, key, request.restart)

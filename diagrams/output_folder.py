@@ -1,7 +1,9 @@
 """The folder a command writes its files into, and the folder of one run.
 
-``output_folder`` makes a folder (or refuses one that cannot be). ``RunFolder`` is the folder a
-run writes (`maskless simulate`, `maskless excite`), claimed before anything is simulated:
+``output_folder`` makes a folder (or refuses one that cannot be). ``FolderLock`` keeps a second
+run out of a folder a run is writing (a Monte Carlo sweep's, which later runs append to).
+``RunFolder`` is the folder a run writes (`maskless simulate`, `maskless excite`), claimed before
+anything is simulated:
 
 - checked: a file in the way, a folder that cannot be made or written, a folder another run is
   writing, or one holding a run's files (replaced only with ``overwrite``, `--overwrite`) are
@@ -55,6 +57,92 @@ def partial_name(name: str) -> str:
     return path.stem + ".partial" + path.suffix
 
 
+class FolderLock:
+    """``.maskless.lock`` in a folder: held by one run at a time (module docstring).
+
+    Use it as a context manager (``acquire`` on entering, ``release`` on leaving). A folder
+    that is appended to across runs (a Monte Carlo sweep's table) needs only this; a run's own
+    folder has it inside ``RunFolder``.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        """The lock of the folder ``path``; nothing is taken yet."""
+        self.path = Path(path)
+        self._descriptor: int | None = None
+
+    def check(self) -> None:
+        """Refuses the folder, as ``acquire`` would, without taking the lock.
+
+        Raises:
+            ConfigError: another run holds the lock (naming its pid), or the folder cannot be
+                written.
+        """
+        try:
+            os.close(self._locked(os.open(self.path / LOCK_NAME, os.O_RDWR)))
+        except FileNotFoundError:
+            pass
+        except PermissionError as error:
+            raise ConfigError(f"{self.path}: cannot write into it ({error.strerror})") from None
+
+    def acquire(self) -> None:
+        """Takes the lock and writes this process's pid into the lock file.
+
+        Raises:
+            ConfigError: as ``check``.
+        """
+        path = self.path / LOCK_NAME
+        while True:
+            try:
+                descriptor = self._locked(os.open(path, os.O_RDWR | os.O_CREAT, 0o644))
+            except OSError as error:
+                raise ConfigError(f"{self.path}: cannot write into it ({error.strerror})") from None
+            # The run before may have removed the file after it was opened here: lock the one
+            # on disk.
+            with contextlib.suppress(FileNotFoundError):
+                if os.path.samestat(os.fstat(descriptor), os.stat(path)):
+                    break
+            os.close(descriptor)
+        os.ftruncate(descriptor, 0)
+        os.write(descriptor, f"{os.getpid()}\n".encode())
+        self._descriptor = descriptor
+
+    @property
+    def held(self) -> bool:
+        """Whether this object holds the lock now."""
+        return self._descriptor is not None
+
+    def release(self) -> None:
+        """Removes the lock file and unlocks (nothing when not held)."""
+        if self._descriptor is None:
+            return
+        # Removed while still locked: a run waiting on the old file then finds it gone.
+        (self.path / LOCK_NAME).unlink(missing_ok=True)
+        os.close(self._descriptor)
+        self._descriptor = None
+
+    def __enter__(self) -> "FolderLock":
+        """Takes the lock (``acquire``)."""
+        self.acquire()
+        return self
+
+    def __exit__(self, error_type, error, traceback) -> None:
+        """Releases the lock."""
+        self.release()
+
+    def _locked(self, descriptor: int) -> int:
+        """``descriptor`` locked; refused (and closed) if another run holds the lock."""
+        try:
+            fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            owner = os.pread(descriptor, 32, 0).decode(errors="replace").strip() or "unknown"
+            os.close(descriptor)
+            raise ConfigError(
+                f"{self.path}: in use by another run (pid {owner}); wait for it to end or give "
+                "another --out"
+            ) from None
+        return descriptor
+
+
 class RunFolder:
     """The folder of one run: checked, locked, written under temporary names (module docstring).
 
@@ -75,7 +163,7 @@ class RunFolder:
         self.path = Path(path)
         self._names = list(names)
         self._overwrite = overwrite
-        self._lock: int | None = None
+        self._lock = FolderLock(self.path)
         self._made = False
 
     def temporary(self, name: str) -> Path:
@@ -103,12 +191,7 @@ class RunFolder:
         existing = next((p for p in [self.path, *self.path.parents] if p.exists()), Path("."))
         if not os.access(existing, os.W_OK | os.X_OK):
             raise ConfigError(f"{self.path}: cannot write into {existing} (permission denied)")
-        try:
-            os.close(self._locked(os.open(self.path / LOCK_NAME, os.O_RDWR)))
-        except FileNotFoundError:
-            pass
-        except PermissionError as error:
-            raise ConfigError(f"{self.path}: cannot write into it ({error.strerror})") from None
+        self._lock.check()
         self._refuse_an_earlier_run()
 
     def claim(self) -> None:
@@ -121,7 +204,7 @@ class RunFolder:
         """
         self._made = not self.path.exists()
         output_folder(self.path)
-        self._lock = self._take_lock()
+        self._lock.acquire()
         try:
             self._refuse_an_earlier_run()
             for name in self._names:
@@ -144,12 +227,9 @@ class RunFolder:
 
     def release(self) -> None:
         """Removes the lock file and unlocks; a folder this run made and left empty goes too."""
-        if self._lock is None:
+        if not self._lock.held:
             return
-        # Removed while still locked: a run waiting on the old file then finds it gone.
-        (self.path / LOCK_NAME).unlink(missing_ok=True)
-        os.close(self._lock)
-        self._lock = None
+        self._lock.release()
         if self._made:
             with contextlib.suppress(OSError):  # not empty: it holds what the run left
                 self.path.rmdir()
@@ -170,37 +250,6 @@ class RunFolder:
                     error.add_note(f"what the run wrote is in {', '.join(left)}")
         finally:
             self.release()
-
-    def _take_lock(self) -> int:
-        """The lock file, opened, locked and holding this process's pid."""
-        path = self.path / LOCK_NAME
-        while True:
-            try:
-                descriptor = self._locked(os.open(path, os.O_RDWR | os.O_CREAT, 0o644))
-            except OSError as error:
-                raise ConfigError(f"{self.path}: cannot write into it ({error.strerror})") from None
-            # The run before may have removed the file after it was opened here: lock the one
-            # on disk.
-            with contextlib.suppress(FileNotFoundError):
-                if os.path.samestat(os.fstat(descriptor), os.stat(path)):
-                    break
-            os.close(descriptor)
-        os.ftruncate(descriptor, 0)
-        os.write(descriptor, f"{os.getpid()}\n".encode())
-        return descriptor
-
-    def _locked(self, descriptor: int) -> int:
-        """``descriptor`` locked; refused (and closed) if another run holds the lock."""
-        try:
-            fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            owner = os.pread(descriptor, 32, 0).decode(errors="replace").strip() or "unknown"
-            os.close(descriptor)
-            raise ConfigError(
-                f"{self.path}: in use by another run (pid {owner}); wait for it to end or give "
-                "another --out"
-            ) from None
-        return descriptor
 
     def _refuse_an_earlier_run(self) -> None:
         if self._overwrite:

@@ -6,6 +6,7 @@ command drives.
 
 from maskless.analysis.identification.model_file import load_identified_model
 from maskless.diagrams.scenario import PaperPlant, PneumaticPlant, Scenario
+from maskless.systems.hammerstein_model import HammersteinModel
 from maskless.systems.linear_model import LinearModel
 from maskless.systems.paper_parameters import paper_identified_model
 from maskless.systems.units import ma_to_a
@@ -27,11 +28,12 @@ def inlet_current_range_a(config: Scenario) -> tuple[float, float]:
     return paper_valve_currents_a(config.paper)
 
 
-def linear_plant_model(config: Scenario) -> tuple[LinearModel, float | None]:
-    """(model, camera height) of a linear plant.
+def linear_plant_model(config: Scenario) -> tuple[LinearModel | HammersteinModel, float | None]:
+    """(model, camera height) of a plant that runs a model.
 
     The model is the paper's, whose output is the distance from ``config.plant.camera`` (at that
-    camera's height, m), or a model file's, whose output is the head height (camera height None).
+    camera's height, m), or a model file's (linear or Hammerstein), whose output is the head
+    height (camera height None).
     """
     if isinstance(config.plant, PaperPlant):
         # The model was identified on the fused distance in the Kinect v2 frame (Sec. III-B).

@@ -46,7 +46,9 @@ DEFAULT_EXCITATION = ExcitationRequest(
 
 def excite_command(request: ExcitationRequest, seed: int, config: Path | None, out: Path) -> str:
     """The `maskless excite` command line that runs ``request`` again, over the workflow's run."""
-    argv = ["--signal", request.signal, "--amplitude", repr(a_to_ma(request.amplitude_a))]
+    argv = ["--signal", request.signal, "--valve-drive", request.valve_drive]
+    if request.amplitude_a is not None:
+        argv += ["--amplitude", repr(a_to_ma(request.amplitude_a))]
     if request.offset_a is not None:
         argv += ["--offset", repr(a_to_ma(request.offset_a))]
     argv += ["--clock-periods", str(request.clock_periods), "--duration", repr(request.duration_s)]
@@ -54,6 +56,9 @@ def excite_command(request: ExcitationRequest, seed: int, config: Path | None, o
         argv += ["--period", repr(request.sample_period_s)]
     if request.band_hz is not None:
         argv += ["--band", f"{request.band_hz[0]!r}:{request.band_hz[1]!r}"]
+    if request.signal == "multilevel":
+        argv += ["--levels", str(request.levels)]
+        argv += ["--hold", f"{request.hold_s[0]!r}:{request.hold_s[1]!r}"]
     return "maskless excite " + shlex.join([*argv, *_common(seed, config, out)])
 
 

@@ -13,6 +13,8 @@ from maskless.systems.control.excitation import (
     clip_to_valve_range,
     clipped_fraction,
     excitation_signal,
+    hold_samples,
+    multilevel_prbs,
     multisine,
     prbs,
     theoretical_uniform_std,
@@ -127,6 +129,7 @@ def test_uniform_times_start_at_zero_with_uniform_step():
         (uniform_white_noise, {}),
         (prbs, {}),
         (multisine, {"phases": "random"}),
+        (multilevel_prbs, {"hold_s": (2 * TS, 9 * TS)}),
     ],
 )
 def test_same_seed_repeats_and_different_seed_differs(design, kwargs):
@@ -187,6 +190,101 @@ def test_prbs_clock_period_cuts_last_bit_short():
     assert signal.num_samples == 10
 
 
+@pytest.mark.parametrize("register_bits", [7, 10])
+def test_prbs_half_period_shift_is_uncorrelated_with_the_plain_sequence(register_bits):
+    # MLS closed form: b(t) = a(t + P // 2), so sum_t a(t) b(t - k) is a's circular
+    # autocorrelation at lag P // 2 - k: P at k = P // 2 and -1 at every other lag.
+    n = 2**register_bits - 1
+    plain = prbs(AMPLITUDE, n * TS, TS, seed=6, offset=OFFSET)
+    shifted = prbs(AMPLITUDE, n * TS, TS, seed=6, offset=OFFSET, half_period_shift=True)
+    a = np.rint((plain.values - OFFSET) / AMPLITUDE)
+    b = np.rint((shifted.values - OFFSET) / AMPLITUDE)
+    cross = np.array([np.dot(a, np.roll(b, lag)) for lag in range(n)])
+    assert np.flatnonzero(cross == n).tolist() == [n // 2]
+    np.testing.assert_array_equal(np.delete(cross, n // 2), -1)
+
+
+def test_prbs_half_period_shift_of_a_partial_period_keeps_two_levels_and_length():
+    shifted = prbs(AMPLITUDE, 1000 * TS, TS, seed=4, offset=OFFSET, half_period_shift=True)
+    assert shifted.num_samples == 1000
+    np.testing.assert_allclose(
+        np.sort(np.unique(shifted.values)), [OFFSET - AMPLITUDE, OFFSET + AMPLITUDE]
+    )
+
+
+# --- multilevel PRBS ------------------------------------------------------------------------------
+
+
+def _holds(values):
+    """(level of each hold, its length in samples), read from the changes of ``values``."""
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(values)) + 1])
+    return values[starts], np.diff(np.append(starts, values.size))
+
+
+def test_multilevel_levels_are_the_grid_each_equally_frequent():
+    num_levels = 6
+    signal = multilevel_prbs(
+        AMPLITUDE,
+        20_000 * TS,
+        TS,
+        seed=11,
+        offset=OFFSET,
+        num_levels=num_levels,
+        hold_s=(3 * TS, 5 * TS),
+    )
+    assert signal.kind == "multilevel"
+    grid = OFFSET + AMPLITUDE * np.linspace(-1.0, 1.0, num_levels)
+    levels, _ = _holds(signal.values)
+    index = np.rint((levels - grid[0]) / (grid[1] - grid[0])).astype(int)
+    # Every value is a grid level (to rounding), and the ends are offset -+ A exactly.
+    np.testing.assert_allclose(levels, grid[index], rtol=0.0, atol=1e-15)
+    assert signal.values.min() == OFFSET - AMPLITUDE and signal.values.max() == OFFSET + AMPLITUDE
+    # Each hold's level uniform over the levels: a chi-square test against equal counts.
+    counts = np.bincount(index, minlength=num_levels)
+    assert stats.chisquare(counts).pvalue > 1e-3
+
+
+def test_multilevel_holds_are_uniform_over_their_range():
+    shortest, longest = 3, 5
+    signal = multilevel_prbs(
+        AMPLITUDE,
+        20_000 * TS,
+        TS,
+        seed=12,
+        offset=OFFSET,
+        num_levels=4,
+        hold_s=(shortest * TS, longest * TS),
+    )
+    _, holds = _holds(signal.values)
+    # The last hold is cut where the record ends. Two holds of one level in a row would read as
+    # one of at least 2 * shortest > longest samples: none does, so every switch is a step.
+    assert holds[:-1].min() == shortest and holds[:-1].max() == longest
+    assert 1 <= holds[-1] <= longest
+    counts = np.bincount(holds[:-1] - shortest)
+    assert stats.chisquare(counts).pvalue > 1e-3
+
+
+def test_multilevel_hold_seconds_become_whole_samples():
+    # 1 s at 1/15 s is 15 samples despite 1 / (1/15) = 15.000000000000002.
+    assert hold_samples((1.0, 40.0), 1.0 / 15.0) == (15, 600)
+    assert hold_samples((0.25, 0.35), 0.1) == (3, 3)
+
+
+@pytest.mark.parametrize(
+    "hold_s",
+    [(0.0, 1.0), (2.0, 1.0), (np.nan, 1.0), (1.0, np.inf), (0.005, 0.05), (0.025, 0.028), "1:2"],
+)
+def test_multilevel_rejects_bad_holds(hold_s):
+    with pytest.raises(ValueError, match="hold_s must"):
+        multilevel_prbs(AMPLITUDE, 100 * TS, TS, seed=0, hold_s=hold_s)
+
+
+@pytest.mark.parametrize("num_levels", [1, 0, 2.5, True])
+def test_multilevel_rejects_bad_level_counts(num_levels):
+    with pytest.raises(ValueError, match="num_levels must be an integer of at least 2"):
+        multilevel_prbs(AMPLITUDE, 100 * TS, TS, seed=0, num_levels=num_levels)
+
+
 # --- multisine ----------------------------------------------------------------------------------
 
 
@@ -237,7 +335,13 @@ def test_multisine_peak_deviation_equals_amplitude_and_mean_is_offset():
 
 
 @pytest.mark.parametrize(
-    "kind, design", [("uniform", uniform_white_noise), ("prbs", prbs), ("multisine", multisine)]
+    "kind, design",
+    [
+        ("uniform", uniform_white_noise),
+        ("prbs", prbs),
+        ("multisine", multisine),
+        ("multilevel", multilevel_prbs),
+    ],
 )
 def test_dispatch_by_name_matches_direct_call(kind, design):
     kwargs = dict(amplitude=AMPLITUDE, duration_s=300 * TS, sample_period_s=TS, seed=3)
@@ -245,7 +349,9 @@ def test_dispatch_by_name_matches_direct_call(kind, design):
 
 
 def test_dispatch_rejects_unknown_kind():
-    with pytest.raises(ValueError, match=r"kind must be one of \['multisine', 'prbs', 'uniform'\]"):
+    with pytest.raises(
+        ValueError, match=r"kind must be one of \['multilevel', 'multisine', 'prbs', 'uniform'\]"
+    ):
         excitation_signal("chirp", amplitude=AMPLITUDE)
 
 
@@ -311,7 +417,7 @@ def test_source_rejects_non_signal():
 # --- argument validation ------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("design", [uniform_white_noise, prbs, multisine])
+@pytest.mark.parametrize("design", [uniform_white_noise, prbs, multisine, multilevel_prbs])
 @pytest.mark.parametrize(
     "overrides, match",
     [

@@ -1,4 +1,4 @@
-"""Open-loop excitation runs: the recorded signal, the plant's equilibrium, clipping, bad flags."""
+"""Open-loop excitation runs: recorded currents (one valve or two), equilibrium, clipping, flags."""
 
 import json
 import math
@@ -6,13 +6,28 @@ import math
 import numpy as np
 import pytest
 
+from maskless.analysis.identification.records import VALVE_CURRENTS_FIELDS, read_mcap_signals
 from maskless.diagrams.cli import main
-from maskless.diagrams.excitation_run import ExcitationRequest, build_excitation_loop
+from maskless.diagrams.excitation_design import plan_excitation
+from maskless.diagrams.excitation_run import (
+    ExcitationRequest,
+    build_excitation_loop,
+    format_excitation_summary,
+)
 from maskless.diagrams.scenario import load_scenario
 from maskless.diagrams.simulation import simulate_loop
 from maskless.errors import ConfigError
 from maskless.recording import read_camera_frames, read_recording
-from maskless.systems.control.excitation import ExcitationSignal
+from maskless.systems.control.excitation import (
+    MULTILEVEL_HOLD_S,
+    MULTILEVEL_LEVELS,
+    ExcitationSignal,
+    multilevel_prbs,
+    prbs,
+    uniform_white_noise,
+)
+from maskless.systems.control.valve_pair_excitation import outlet_seed
+from maskless.systems.plant.pneumatic_design import linearize_pneumatic_plant
 from maskless.systems.plant.pneumatic_physics import LIFT
 from maskless.systems.plant.pneumatic_plant import equilibrium_state
 
@@ -128,3 +143,139 @@ def test_excite_with_rendered_cameras_records_their_frames(tmp_path, capsys):
     assert summary["files"]["frames"] == str(out / "frames.png")
     frames = read_camera_frames(out / "run.mcap")
     assert sorted(frames) == ["kinect_v1", "kinect_v2"]
+
+
+def _recorded_currents(out, samples):
+    """The valve currents the recording holds at the excitation's samples (A), as (N, 2)."""
+    ((_, currents),) = read_mcap_signals(out / "run.mcap", VALVE_CURRENTS_FIELDS)
+    # The log also holds the instant the run ends, when the last sample is still held.
+    return currents[:samples]
+
+
+def test_independent_multilevel_records_each_valves_own_signal(tmp_path, capsys):
+    out = tmp_path / "ex"
+    args = ["excite", "--valve-drive", "independent", "--signal", "multilevel", "--seed", "4"]
+    args += ["--hold", "0.5:3", "--duration", "20", "--out", str(out), "--json"]
+    assert main(args) == 0
+    summary = json.loads(capsys.readouterr().out)
+    currents = _recorded_currents(out, summary["samples"])
+    # Each valve's levels span its whole range, 0 to 165 mA (assets/pneumatic.yaml), designed
+    # here directly: the inlet from the run's seed, the outlet from its own.
+    expected = [
+        multilevel_prbs(0.0825, 20.0, PERIOD_S, seed, offset=0.0825, hold_s=(0.5, 3.0)).values
+        for seed in (4, outlet_seed(4))
+    ]
+    np.testing.assert_array_equal(currents, np.column_stack(expected))
+    for column, valve in enumerate(("inlet", "outlet")):
+        reported = summary["valves"][valve]
+        assert reported["std_ma"] == pytest.approx(1e3 * np.std(currents[:, column]), rel=1e-12)
+        assert reported["range_ma"] == pytest.approx(
+            [1e3 * currents[:, column].min(), 1e3 * currents[:, column].max()], rel=1e-12
+        )
+        assert reported["clipped_fraction"] == 0.0
+    assert summary["valve_drive"] == "independent" and summary["signal"] == "multilevel"
+
+
+def test_independent_uniform_is_clipped_to_each_valves_range(tmp_path, capsys):
+    out = tmp_path / "ex"
+    args = ["excite", "--valve-drive", "independent", "--offset", "140", "--amplitude", "50"]
+    assert main([*args, "--duration", "30", "--seed", "2", "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    currents = _recorded_currents(out, summary["samples"])
+    for column, (valve, seed) in enumerate((("inlet", 2), ("outlet", outlet_seed(2)))):
+        designed = uniform_white_noise(0.050, 30.0, PERIOD_S, seed, offset=0.140).values
+        np.testing.assert_array_equal(currents[:, column], np.clip(designed, 0.0, 0.165))
+        clipped = np.count_nonzero(designed > 0.165) / designed.size
+        assert summary["valves"][valve]["clipped_fraction"] == clipped
+        # A quarter of U(90, 190) mA lies above 165 mA.
+        assert clipped == pytest.approx(0.25, abs=0.05)
+
+
+def test_split_range_never_opens_both_valves_and_recombines(tmp_path, capsys):
+    out = tmp_path / "ex"
+    args = ["excite", "--valve-drive", "split-range", "--amplitude", "120", "--seed", "5"]
+    assert main([*args, "--duration", "30", "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    inlet, outlet = _recorded_currents(out, summary["samples"]).T
+    # About the split (the inlet's 60 mA starting current), the command range -45 to 165 mA.
+    assert summary["offset_ma"] == pytest.approx(60.0)
+    command = uniform_white_noise(0.120, 30.0, PERIOD_S, 5, offset=0.060).values
+    assert not np.any((inlet > 0.060) & (outlet > 0.060))
+    # The outlet's 60-165 mA stands for commands from 60 mA down to -45 mA.
+    recombined = np.where(inlet >= 0.060, inlet, 0.060 - (outlet - 0.060))
+    np.testing.assert_allclose(recombined, np.clip(command, -0.045, 0.165), rtol=0, atol=1e-6)
+    assert summary["valves"]["inlet"]["clipped_fraction"] == np.mean(command > 0.165)
+    assert summary["valves"]["outlet"]["clipped_fraction"] == np.mean(command < -0.045)
+    text = format_excitation_summary({**summary, "files": {}})
+    assert "inlet and outlet (one split-range command)" in text
+    assert f"outlet: 0.0-165.0 mA, std {summary['valves']['outlet']['std_ma']:.2f} mA" in text
+
+
+@pytest.mark.parametrize(
+    "fields, message",
+    [
+        ({"valve_drive": "both"}, "valve_drive 'both': expected one of inlet, independent"),
+        (
+            {"valve_drive": "independent", "signal": "multisine"},
+            "valve_drive 'independent': expected inlet or split-range with a multisine",
+        ),
+        ({"levels": 1}, "levels 1: expected 2 or more levels"),
+        ({"hold_s": (0.0, 1.0)}, r"hold_s \(0.0, 1.0\): expected SHORTEST:LONGEST seconds"),
+        ({"hold_s": (3.0, 1.0)}, r"hold_s \(3.0, 1.0\): expected SHORTEST:LONGEST seconds"),
+        ({"amplitude_a": 0.0}, "amplitude_a 0.0: expected a positive current"),
+    ],
+)
+def test_request_refuses_malformed_two_valve_and_multilevel_fields(fields, message):
+    with pytest.raises(ConfigError, match=message):
+        ExcitationRequest(**fields)
+
+
+def test_cli_names_the_flag_of_a_malformed_two_valve_or_multilevel_field(tmp_path, capsys):
+    out = tmp_path / "ex"
+    args = ["excite", "--valve-drive", "independent", "--signal", "multisine", "--out", str(out)]
+    assert main(args) == 2
+    assert "--valve-drive 'independent': expected inlet or split-range" in capsys.readouterr().err
+    assert main(["excite", "--signal", "multilevel", "--hold", "0.01:0.05", "--out", str(out)]) == 2
+    assert "--hold 0.01:0.05: expected holds of at least one sample" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["excite", "--valve-drive", "both"])
+    assert "invalid choice: 'both'" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["excite", "--hold", "1-2"])
+    assert "SHORTEST:LONGEST" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_multilevel_defaults_fit_the_pneumatic_plants_time_constants():
+    p = load_scenario().pneumatic
+    inlet = p.inlet
+
+    def slow_time_constant_s(current_a):
+        a, _, _ = linearize_pneumatic_plant(p, current_a)
+        return max(-1.0 / np.linalg.eigvals(a).real)
+
+    shortest_s, longest_s = MULTILEVEL_HOLD_S
+    # Holds at the top level can settle (four time constants), the shortest outlasts the fastest.
+    assert longest_s >= 4 * slow_time_constant_s(inlet.saturation_current_a)
+    assert shortest_s >= slow_time_constant_s(inlet.starting_current_a + 0.002)
+    # Over the whole range the levels are wider apart than the hysteresis band, and some lie
+    # below the starting current.
+    levels = np.linspace(0.0, inlet.saturation_current_a, MULTILEVEL_LEVELS)
+    assert np.diff(levels)[0] > 2 * inlet.hysteresis_fraction * inlet.current_span_a
+    assert np.count_nonzero(levels < inlet.starting_current_a) == 4
+
+
+def test_independent_prbs_gives_the_outlet_the_inlets_sequence_half_a_period_later():
+    config = load_scenario()
+    request = ExcitationRequest(signal="prbs", valve_drive="independent", duration_s=60.0)
+    plan = plan_excitation(config, request)
+    # The default centre of each valve, mid-way between 60 and 165 mA, +- 50 mA.
+    inlet = prbs(0.050, 60.0, PERIOD_S, config.random_seed, offset=0.1125)
+    outlet = prbs(0.050, 60.0, PERIOD_S, config.random_seed, offset=0.1125, half_period_shift=True)
+    np.testing.assert_array_equal(plan.inlet.values, inlet.values)
+    np.testing.assert_array_equal(plan.outlet.values, outlet.values)
+    assert plan.designed_outlet is not None and plan.clipped == {"inlet": 0.0, "outlet": 0.0}
+    # Uncorrelated at the lags a model spans (here up to 10 s): a shorter shift would peak there.
+    a, b = inlet.values - inlet.values.mean(), outlet.values - outlet.values.mean()
+    cross = np.correlate(a, b, mode="full")[a.size - 1 - 150 : a.size + 150] / np.dot(a, a)
+    assert np.max(np.abs(cross)) < 0.15

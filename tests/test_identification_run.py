@@ -6,11 +6,14 @@ import numpy as np
 import pytest
 import yaml
 from identification_records import PAPER_DATA, paper_record, simulate_record
+from two_input_records import simulate_two_inputs, true_dc_gains
 from version1_recording import write_version1_recording
 
 import maskless
-from maskless.analysis.identification.model_file import load_identified_model
+from maskless.analysis.identification.model_file import load_identified_model, load_input_models
+from maskless.analysis.identification.records import VALVE_CURRENTS_FIELDS, read_mcap_signals
 from maskless.diagrams.cli import main
+from maskless.errors import ModelError
 
 
 def write_record(tmp_path, u, y):
@@ -223,7 +226,8 @@ def test_other_methods_through_the_command(tmp_path, capsys, method, parameters)
     assert model["parameters"] == parameters  # ARX(2,2,1): 2n; the others 3n + n initial states
     np.testing.assert_allclose(np.sort([p[0] for p in model["poles"]]), [0.7, 0.9], atol=0.02)
     if method == "n4sid":
-        assert model["horizon"] == 10 and len(model["singular_values"]) == 6
+        # Future horizon 2n + 2; the past one chosen from the data (test_subspace.py).
+        assert model["horizon"]["future"] == 6 and len(model["singular_values"]) == 6
 
 
 def test_zero_initial_state_is_used_everywhere(tmp_path, capsys):
@@ -391,3 +395,72 @@ def test_a_new_run_removes_the_model_files_an_earlier_run_left(tmp_path, capsys)
         "compare_pem_order3.png",
         "residuals_pem_order3.png",
     ]
+
+
+def test_excite_both_valves_then_identify_a_two_input_model(tmp_path, capsys):
+    out = tmp_path / "ex"
+    excite = ["excite", "--valve-drive", "independent", "--duration", "60", "--seed", "3"]
+    assert main([*excite, "--out", str(out)]) == 0
+    capsys.readouterr()
+    # The recording's command topic carries both valve currents under these names.
+    ((_, currents),) = read_mcap_signals(out / "run.mcap", VALVE_CURRENTS_FIELDS)
+    assert currents.shape[1] == 2 and np.all(np.ptp(currents, axis=0) > 0)
+    flags = ["--input", str(out / "run.mcap"), "--ts", repr(1 / 15), "--orders", "2"]
+    flags += ["--input-column", VALVE_CURRENTS_FIELDS, "--out", str(tmp_path / "id")]
+    report = run_json(capsys, *flags)
+    names = ["inlet_valve_current_a", "outlet_valve_current_a"]
+    assert report["record"]["inputs"] == names
+    assert report["record"]["units"] == {"input": ["A", "A"], "output": "m"}
+    entry = report["models"][0]
+    assert np.array(entry["B"]).shape == (2, 2) and len(entry["dc_gain"]) == 2
+    assert list(entry["input_contributions"]["validation"]) == names
+    assert list(report["diagnostics"]["inputs"]) == names
+    model_file = tmp_path / "id" / "model_pem_order2.yaml"
+    inlet, outlet = load_input_models(model_file)
+    assert (inlet.input_unit, outlet.input_unit, inlet.output_unit) == ("A", "A", "m")
+    assert [inlet.dc_gain(), outlet.dc_gain()] == pytest.approx(entry["dc_gain"])
+    for png in ("record_input1.png", "record_input2.png", "compare_pem_order2.png"):
+        assert (tmp_path / "id" / png).stat().st_size > 0
+    # The closed loop drives one input: the two-input file is refused in one line naming it.
+    simulate = ["simulate", "--plant", f"identified:{model_file}", "--duration", "1"]
+    assert main([*simulate, "--out", str(tmp_path / "sim")]) == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert f"{model_file}: a model of 2 inputs ({', '.join(names)})" in error
+    # So is the library's run.model, which a design would take.
+    run = maskless.identify(*simulate_two_inputs(600, seed=4), 1.0)
+    with pytest.raises(ModelError, match=r"a model of 2 inputs \(input 1, input 2\)"):
+        _ = run.model
+
+
+def test_a_split_range_recording_is_named_as_inputs_that_cannot_be_told_apart(tmp_path, capsys):
+    # A two-level PRBS split between the valves makes each valve's current an affine function of
+    # the other's: the record cannot tell their effects apart, and the report must say so.
+    out = tmp_path / "ex"
+    excite = ["excite", "--valve-drive", "split-range", "--signal", "prbs", "--clock-periods"]
+    assert main([*excite, "45", "--duration", "60", "--seed", "2", "--out", str(out)]) == 0
+    capsys.readouterr()
+    flags = ["--input", str(out / "run.mcap"), "--ts", repr(1 / 15), "--orders", "2"]
+    report = run_json(
+        capsys, *flags, "--input-column", VALVE_CURRENTS_FIELDS, "--out", str(tmp_path / "id")
+    )
+    assert min(report["diagnostics"]["separation"]["shared_variance"].values()) > 0.99
+    assert any(w.startswith("the inputs cannot be told apart") for w in report["warnings"])
+    assert "Warning: the inputs cannot be told apart" in report["verdict"]
+
+
+def test_two_input_columns_of_a_csv_give_a_two_input_model(tmp_path, capsys):
+    u, y = simulate_two_inputs(3000, seed=5)
+    table = tmp_path / "record.csv"
+    np.savetxt(table, np.column_stack([u, y]), delimiter=",", header="inlet,outlet,y", comments="")
+    flags = ["--input", str(table), "--output", str(table), "--output-column", "y", "--ts", "1"]
+    flags += ["--input-column", "inlet,outlet", "--input-unit", "mA", "--output-unit", "mm"]
+    report = run_json(capsys, *flags, "--out", str(tmp_path / "id"))
+    assert report["record"]["inputs"] == ["inlet", "outlet"]
+    assert report["models"][0]["dc_gain"] == pytest.approx(list(true_dc_gains()), rel=0.1)
+    flags[flags.index("inlet,outlet")] = "inlet,nothing"
+    assert main(["identify", *flags, "--out", str(tmp_path / "bad")]) == 2
+    assert "no column 'nothing'" in capsys.readouterr().err
+    flags[flags.index("inlet,nothing")] = "inlet,outlet"
+    flags[flags.index("mA")] = "mA,mA,mA"
+    assert main(["identify", *flags, "--out", str(tmp_path / "bad")]) == 2
+    assert "--input-unit 'mA,mA,mA': expected one unit for all 2 inputs" in capsys.readouterr().err

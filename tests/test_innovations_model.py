@@ -4,7 +4,10 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from maskless.analysis.identification.innovations_model import InnovationsModel
+from maskless.analysis.identification.innovations_model import (
+    InnovationsModel,
+    samples_before_growth,
+)
 
 MODEL = InnovationsModel(
     a=np.array([-1.5, 0.56]),
@@ -91,3 +94,32 @@ def test_k_step_prediction_matches_running_the_predictor_then_the_model(steps):
     np.testing.assert_allclose(predicted[steps:], reference[steps:], atol=1e-10)
     if steps == 1:
         np.testing.assert_allclose(predicted, model.predict(u, y), atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "largest, expected", [(0.9, 65_000), (1.0, 65_000), (1.05, 283), (2.0, 19)]
+)
+def test_samples_before_growth_is_where_the_largest_pole_grows_a_millionfold(largest, expected):
+    # Closed form: the largest m with largest^m <= 1e6, i.e. floor(ln 1e6 / ln largest).
+    assert samples_before_growth(np.array([0.5, -largest]), 65_000) == expected
+    if largest > 1:
+        assert largest**expected <= 1e6 < largest ** (expected + 1)
+
+
+@pytest.mark.parametrize("horizon", ["one_step", "simulation"])
+def test_initial_state_of_an_unstable_model_on_a_long_record(horizon):
+    # Before issue 14 the least squares took the free response over all 65,000 samples, which
+    # overflowed (LinAlgError, "SVD did not converge"). Roots at 1.05 and 0.5: A(z)'s for
+    # "simulation", C(z)'s (the predictor's) for "one_step". The record is the model's noise-free
+    # output (so the one-step prediction is exact too) for 300 samples, past the 283 used, then
+    # noise.
+    unstable, stable = np.real(np.poly([1.05, 0.5]))[1:], np.real(np.poly([0.4, 0.2]))[1:]
+    a, c = (unstable, stable) if horizon == "simulation" else (stable, unstable)
+    model = InnovationsModel(
+        a=a, b=np.array([0.4, -0.1]), k=c - a, sample_period_s=1.0, initial_state=np.zeros(2)
+    )
+    rng = np.random.default_rng(6)
+    u, y = rng.normal(size=65_000), rng.normal(size=65_000)
+    x0 = np.array([1.5, -0.7])
+    y[:300] = model.simulate(u[:300], x0)
+    np.testing.assert_allclose(model.initial_state_for(u, y, horizon), x0, atol=1e-6)

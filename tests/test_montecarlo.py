@@ -27,6 +27,7 @@ from maskless.diagrams.montecarlo import (
     fingerprint,
     run_sweep,
 )
+from maskless.diagrams.output_folder import LOCK_NAME, FolderLock
 from maskless.diagrams.population import UniformRange, patient_plant, sweep_scenario
 from maskless.diagrams.scenario import controller_from_shorthand
 from maskless.diagrams.simulation import simulate
@@ -259,6 +260,18 @@ def test_a_folder_of_another_sweep_is_refused_unless_restarted(tmp_path):
     assert summary["sweep"]["run_now"] == 1
     grown = dataclasses.replace(config, trials=9, seeds_per_patient=3, worst_traces=0)
     assert fingerprint(grown) == fingerprint(config)
+
+
+def test_a_folder_another_sweep_is_writing_is_refused_and_free_again_after_it(tmp_path):
+    config = tiny_population(tmp_path, trials=1)
+    out = tmp_path / "mc"
+    out.mkdir()
+    with FolderLock(out):  # another sweep, as far as the lock can tell (its own open file)
+        with pytest.raises(ConfigError, match=rf"in use by another run \(pid {os.getpid()}\)"):
+            sweep(config, out, workers=1)
+        assert not (out / "trials.csv").exists()
+    assert sweep(config, out, workers=1)["sweep"]["run_now"] == 1
+    assert not (out / LOCK_NAME).exists()
 
 
 def test_a_failed_run_is_a_row_that_says_why_and_fails_the_command(tmp_path, monkeypatch, capsys):

@@ -1,7 +1,10 @@
 """Prediction-error fits: true poles and gains of simulated records, and MATLAB's saved report."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
+import scipy.signal
 from identification_records import (
     TRUE_SYSTEMS,
     largest_pole_error,
@@ -11,7 +14,14 @@ from identification_records import (
 )
 
 from maskless.analysis.identification.fit_metrics import evaluate_fit, fit_percent
-from maskless.analysis.identification.prediction_error import estimate_pem, parameter_count
+from maskless.analysis.identification.innovations_model import InnovationsModel
+from maskless.analysis.identification.prediction_error import (
+    _error_jacobian,
+    estimate_arx,
+    estimate_pem,
+    parameter_count,
+    stable_noise_polynomial,
+)
 from maskless.analysis.identification.report import Part, fit
 
 # (order, noise, samples, largest pole error allowed).
@@ -100,3 +110,56 @@ def test_long_fits_report_progress():
     estimate_pem(u, y, 4, 1.0, progress=lambda evaluations, cost: calls.append((evaluations, cost)))
     assert calls and all(cost > 0 for _, cost in calls)
     assert [e for e, _ in calls] == sorted(e for e, _ in calls)
+
+
+def test_the_jacobian_matches_central_differences():
+    u, y, _, _ = simulate_record(2, "coloured", 300)
+    model = InnovationsModel(
+        a=np.array([-1.5, 0.56]),
+        b=np.array([0.4, -0.1]),
+        k=np.array([0.3, -0.2]),
+        sample_period_s=1.0,
+        initial_state=np.array([0.5, -0.2]),
+    )
+    free = ["a", "b", "k", "initial_state"]
+    theta = np.concatenate([getattr(model, name) for name in free])
+
+    def errors(values):
+        fields = {name: values[2 * i : 2 * i + 2] for i, name in enumerate(free)}
+        return y - replace(model, **fields).predict(u, y)
+
+    step = 1e-6
+    reference = np.column_stack(
+        [(errors(theta + step * e) - errors(theta - step * e)) / (2 * step) for e in np.eye(8)]
+    )
+    jacobian = _error_jacobian(model, u, y, errors(theta), free)
+    np.testing.assert_allclose(jacobian, reference, atol=1e-6)
+
+
+def test_a_noise_polynomial_is_reflected_inside_with_the_same_spectrum_shape():
+    # Roots 1.25 and -2 reflect to 0.8 and -0.5; 0.3 stays. |C(e^jw)|² keeps its shape.
+    c = np.real(np.poly([1.25, -2.0, 0.3]))[1:]
+    stable = stable_noise_polynomial(c)
+    np.testing.assert_allclose(np.sort(np.roots([1.0, *stable]).real), [-0.5, 0.3, 0.8], atol=1e-12)
+    _, before = scipy.signal.freqz([1.0, *c], worN=64)
+    _, after = scipy.signal.freqz([1.0, *stable], worN=64)
+    ratio = np.abs(before) ** 2 / np.abs(after) ** 2
+    np.testing.assert_allclose(ratio, ratio[0], rtol=1e-9)
+    np.testing.assert_array_equal(stable_noise_polynomial(np.array([-0.5, 0.06])), [-0.5, 0.06])
+
+
+def test_a_root_on_the_circle_is_kept_one_hundredth_inside():
+    stable = stable_noise_polynomial(np.array([-1.0]))  # C(z) = z - 1
+    np.testing.assert_allclose(np.roots([1.0, *stable]), [0.99])
+
+
+def test_the_search_leaves_an_unstable_start_and_ends_with_a_stable_predictor():
+    # Before issue 14 a start whose predictor had a root outside the unit circle was returned
+    # unchanged: its residuals were a constant, so their Jacobian was zero.
+    u, y, a, _ = simulate_record(2, "coloured", 3000)
+    arx = estimate_arx(u, y, 2, 1.0)
+    unstable_c = np.real(np.poly([1.3, 0.2]))[1:]
+    start = replace(arx, k=unstable_c - arx.a)
+    model = estimate_pem(u, y, 2, 1.0, initial_model=start)
+    assert all(abs(p) < 1 for p in model.predictor_poles())
+    assert largest_pole_error(model.linear_model().poles(), TRUE_SYSTEMS[2]["poles"]) < 0.01

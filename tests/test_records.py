@@ -1,10 +1,18 @@
-"""CSV records, part ranges and detrending, with errors naming the file, the line and the flag."""
+"""CSV and MCAP records, part ranges and detrending, with errors naming the file, line and flag."""
 
 import numpy as np
 import pytest
+from version1_recording import write_version1_recording
 
-from maskless.analysis.identification.records import detrend, parse_range, read_csv_signal
+from maskless.analysis.identification.records import (
+    VALVE_CURRENTS_FIELDS,
+    detrend,
+    parse_range,
+    read_csv_signal,
+    read_mcap_signals,
+)
 from maskless.errors import RecordError
+from maskless.recording import Channel, write_recording
 
 
 def write(tmp_path, name, text):
@@ -78,3 +86,59 @@ def test_detrend_modes():
     assert detrend(u, y, "none").u is u
     with pytest.raises(RecordError, match="--detrend"):
         detrend(u, y, "quadratic")
+
+
+def _command_recording(path, inlet, outlet):
+    times_ns = np.arange(inlet.size, dtype=np.int64) * 48_000_000
+    channel = Channel(
+        "/controller/command",
+        times_ns,
+        {"inlet_valve_current_a": inlet, "outlet_valve_current_a": outlet},
+    )
+    write_recording(path, [channel])
+    return times_ns
+
+
+def test_both_valve_currents_read_as_two_columns_of_one_signal(tmp_path):
+    rng = np.random.default_rng(0)
+    inlet, outlet = rng.uniform(0, 0.165, 50), rng.uniform(0, 0.165, 50)
+    path = tmp_path / "two.mcap"
+    times_ns = _command_recording(path, inlet, outlet)
+    (times, currents), (_, inlet_only) = read_mcap_signals(
+        path, VALVE_CURRENTS_FIELDS, "/controller/command:inlet_valve_current_a"
+    )
+    np.testing.assert_array_equal(times, times_ns)
+    assert currents.shape == (50, 2)
+    np.testing.assert_array_equal(currents, np.column_stack([inlet, outlet]))
+    # The single-field call is as before: one 1-D signal.
+    assert inlet_only.shape == (50,)
+    np.testing.assert_array_equal(inlet_only, inlet)
+
+
+def test_two_columns_under_version1_names(tmp_path):
+    path = str(tmp_path / "v1.mcap")
+    messages = [
+        ("/controller/command", 48_000_000 * k, {"current_a": 0.1 + k, "outlet_current_a": -k})
+        for k in range(5)
+    ]
+    write_version1_recording(path, messages)
+    ((_, currents),) = read_mcap_signals(path, "/controller/command:current_a,outlet_current_a")
+    np.testing.assert_array_equal(currents, [[0.1 + k, -k] for k in range(5)])
+
+
+@pytest.mark.parametrize(
+    "spec, message",
+    [
+        (
+            "/controller/command:inlet_valve_current_a,",
+            "should be TOPIC:FIELD or TOPIC:FIELD,FIELD",
+        ),
+        ("/controller/command:inlet_valve_current_a,coil_a", "has no field 'coil_a'"),
+        ("/nothing:a,b", "no topic '/nothing'"),
+    ],
+)
+def test_bad_multi_field_specs_are_refused(tmp_path, spec, message):
+    path = tmp_path / "two.mcap"
+    _command_recording(path, np.zeros(3), np.zeros(3))
+    with pytest.raises(RecordError, match=message):
+        read_mcap_signals(path, spec)

@@ -5,15 +5,19 @@ import math
 import numpy as np
 import pytest
 
+from maskless.analysis.identification.innovations_model import InnovationsModel
 from maskless.analysis.identification.report import (
     EXPLAINS_SIM,
     EXPLAINS_VERDICT,
     MARGIN_1STEP,
     MARGIN_SIM,
     NO_VERDICT,
+    FittedModel,
     Part,
     fit,
+    instability,
     margins,
+    model_entry,
     naive_figures,
     verdict,
 )
@@ -35,7 +39,7 @@ def baselines(without_input_1step=89.0, free_response_sim=5.0):
     }
 
 
-def judge(sim, without_input, free_response, stable=True):
+def judge(sim, without_input, free_response, unstable=None):
     """The verdict on a part whose simulation fits ``sim`` % with the given margins (points)."""
     figures = {"fit_percent_1step": 90.0, "fit_percent_sim": sim}
     gains = {
@@ -43,7 +47,7 @@ def judge(sim, without_input, free_response, stable=True):
         "without_input": without_input,
         "free_response": free_response,
     }
-    return verdict(figures, baselines(), gains, PART, stable)
+    return verdict(figures, baselines(), gains, PART, unstable)
 
 
 def test_margins_are_the_fit_points_won_over_each_baseline():
@@ -109,12 +113,64 @@ def test_verdict_at_and_just_across_each_threshold(sim, without_input, free_resp
 
 
 def test_verdict_gives_its_evidence_and_flags_an_unstable_model():
-    words = judge(62.0, 1.0, 57.0, stable=False)
+    words = judge(62.0, 1.0, 57.0, unstable="its one-step predictor (largest root of C(z) 1.1)")
     assert words.startswith(f"{EXPLAINS}: ")  # the judgement is the same
     assert "order-2 structure (ARMA)" in words and f"the {PART} part" in words
     assert "89.000 % against 90.000 %" in words  # without the input, and with it
     assert "62.0 % (5.0 % from its initial state alone)" in words
-    assert words.endswith("; the model is UNSTABLE.")
+    assert words.endswith(
+        "; the model is UNSTABLE: its one-step predictor (largest root of C(z) 1.1)."
+    )
+
+
+def polynomials(poles, predictor_poles):
+    """An order-2 model whose A(z) and C(z) have the given roots."""
+    a = np.real(np.poly(poles))[1:]
+    c = np.real(np.poly(predictor_poles))[1:]
+    return InnovationsModel(
+        a=a, b=np.array([1.0, 0.5]), k=c - a, sample_period_s=1.0, initial_state=np.zeros(2)
+    )
+
+
+@pytest.mark.parametrize(
+    "poles, predictor_poles, expected",
+    [
+        ([0.9, 0.5], [0.3, 0.2], None),
+        ([1.05, 0.5], [0.3, 0.2], "its system (largest pole magnitude 1.050000)"),
+        ([0.9, 0.5], [0.3, -1.2], "its one-step predictor (largest root of C(z) 1.200000)"),
+        (
+            [0.9, 1.02],
+            [0.3, 1.01],
+            "its system (largest pole magnitude 1.020000) and its one-step predictor "
+            "(largest root of C(z) 1.010000)",
+        ),
+    ],
+)
+def test_instability_names_the_unstable_system_and_predictor(poles, predictor_poles, expected):
+    assert instability(polynomials(poles, predictor_poles)) == expected
+
+
+def entry_of(model):
+    """``model_entry`` of ``model`` as a PEM fit, on hand-built figures."""
+    fitted = FittedModel("pem", model.linear_model(), model, True, 8)
+    figures = {PART: {"fit_percent_1step": 90.0, "fit_percent_sim": 62.0}}
+    gains = {"naive_last_value": 1.0, "without_input": 1.0, "free_response": 57.0}
+    return model_entry(fitted, figures, baselines(), gains, PART)
+
+
+def test_an_unstable_predictor_is_warned_about_and_judged_unstable():
+    # Before issue 14 `predictor_stable: false` was computed, and neither the warning nor the
+    # verdict used it.
+    entry = entry_of(polynomials([0.9, 0.5], [0.3, 1.2]))
+    assert entry["stable"] and not entry["predictor_stable"]
+    assert entry["warning"].startswith("the order-2 pem model is unstable: its one-step predictor")
+    assert entry["verdict"].endswith("(largest root of C(z) 1.200000).")
+
+
+def test_a_stable_model_has_no_warning():
+    entry = entry_of(polynomials([0.9, 0.5], [0.3, 0.2]))
+    assert entry["stable"] and entry["predictor_stable"] and "warning" not in entry
+    assert "UNSTABLE" not in entry["verdict"]
 
 
 def test_naive_figures_fit_last_value_predictions():
@@ -141,5 +197,7 @@ def test_an_unknown_method_is_refused_naming_the_methods():
 def test_a_nan_figure_is_named_not_judged():
     figures = {"fit_percent_1step": 90.0, "fit_percent_sim": math.nan}
     gains = {"naive_last_value": 1.0, "without_input": 5.0, "free_response": math.nan}
-    said = verdict(figures, baselines(), gains, PART, stable=True)
+    said = verdict(figures, baselines(), gains, PART, unstable=None)
     assert said == f"{NO_VERDICT}: on the validation part, fit_percent_sim is NaN."
+    said = verdict(figures, baselines(), gains, PART, unstable="its system (...)")
+    assert said.endswith("fit_percent_sim is NaN; the model is UNSTABLE: its system (...).")

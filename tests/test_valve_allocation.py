@@ -85,3 +85,52 @@ def test_pneumatic_allocation_inverts_the_first_segment(p):
     # Lift is about quadratic in current in the first segment (0-1.65 mm): a straight line there
     # misses by up to 0.4 mm, which the disturbance estimate removes in closed loop.
     assert hammerstein_error_m(p, first_segment=True) < 0.5e-3
+
+
+def _hammerstein(inlet_gain_m=0.018, outlet_gain_m=-0.002):
+    from maskless.systems.hammerstein_model import HammersteinModel
+    from maskless.systems.plant.valve_map import ValveMap
+
+    a = np.array([-0.9])
+    return HammersteinModel(
+        maps=(
+            ValveMap([0.060, 0.100, 0.120, 0.165], [0.0, 0.3, 0.3, 1.0]),
+            ValveMap([0.050, 0.150], [0.0, 1.0]),
+        ),
+        a=[a, a],
+        b=[[inlet_gain_m * 0.1], [outlet_gain_m * 0.1]],
+        input_delay_samples=1,
+        operating_output=0.2,
+        sample_period_s=0.1,
+    )
+
+
+def test_the_static_curve_inverse_gives_each_command_its_steady_output():
+    from maskless.systems.control.valve_allocation import static_curve_inverse
+
+    model = _hammerstein()
+    allocation = static_curve_inverse(model)
+    assert allocation.command_range == pytest.approx((-0.002, 0.018))
+    commands = np.linspace(-0.002, 0.018, 101)
+    inlet, outlet = (
+        np.array([float(c) for c in currents])
+        for currents in zip(*(allocation.currents(command) for command in commands), strict=True)
+    )
+    # Never both valves open; each command's steady output from the model's own static curves.
+    opened = (inlet >= 0.060) & (outlet >= 0.050)
+    assert not np.any(
+        opened & (model.maps[0].opening(inlet) > 0) & (model.maps[1].opening(outlet) > 0)
+    )
+    steady = model.static_curve(0, inlet) + model.static_curve(1, outlet)
+    # Exact but for the hair (1e-6 of the range) that separates the valves at command 0.
+    np.testing.assert_allclose(steady, commands, atol=1e-7)
+    # The flat run of the inlet's map is skipped: 30 % open is 100 mA, never 120 mA.
+    assert allocation.currents(0.3 * 0.018)[0] == pytest.approx(0.100)
+
+
+def test_a_static_curve_inverse_needs_an_inlet_that_lifts_and_an_outlet_that_lowers():
+    from maskless.errors import ModelError
+    from maskless.systems.control.valve_allocation import static_curve_inverse
+
+    with pytest.raises(ModelError, match="inlet to raise the output"):
+        static_curve_inverse(_hammerstein(outlet_gain_m=0.001))

@@ -1,14 +1,18 @@
 """The workflow end to end: identified gain against the plant's linearisations; the loop tracks."""
 
+import argparse
 import json
 import shlex
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from maskless.diagrams.cli import main
+from maskless.diagrams.commands import excite
+from maskless.diagrams.excitation_design import ExcitationRequest
 from maskless.diagrams.scenario import load_scenario
-from maskless.diagrams.workflow import run_workflow
+from maskless.diagrams.workflow import excite_command, run_workflow
 from maskless.systems.plant.pneumatic_design import linearize_pneumatic_plant
 
 
@@ -96,3 +100,20 @@ def test_each_printed_command_redoes_its_stage_byte_for_byte(workflow, capsys):
     capsys.readouterr()
     for name in files:
         assert (out / name).read_bytes() == before[name], name
+
+
+@pytest.mark.parametrize(
+    "request_",
+    [
+        ExcitationRequest(signal="uniform"),
+        ExcitationRequest(signal="prbs", amplitude_a=0.025, offset_a=0.13, clock_periods=30),
+        ExcitationRequest(signal="multilevel", valve_drive="independent", hold_s=(0.5, 20.0)),
+        ExcitationRequest(signal="multisine", valve_drive="split-range", band_hz=(0.01, 1.0)),
+    ],
+)
+def test_the_printed_excite_command_asks_for_the_same_experiment(request_):
+    argv = shlex.split(excite_command(request_, 0, None, Path("out")))
+    assert argv[:2] == ["maskless", "excite"]
+    parser = argparse.ArgumentParser()
+    excite.add_arguments(parser)
+    assert excite.excitation_request(parser.parse_args(argv[2:])) == request_

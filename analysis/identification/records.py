@@ -97,23 +97,36 @@ def _parse_value(
     return value
 
 
+# Both valve currents as one two-column input, for an identification from the inlet and outlet.
+VALVE_CURRENTS_FIELDS = "/controller/command:inlet_valve_current_a,outlet_valve_current_a"
+
+
 def read_mcap_signals(
     path: str | Path, *topics_and_fields: str
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """Signals from a maskless MCAP recording, read once: (log times in ns, values) for each.
 
+    A signal of one field has values of shape (N,); one of several fields of a topic, which share
+    their log times, has one column per field, shape (N, k), in the order given (e.g.
+    ``VALVE_CURRENTS_FIELDS``, the inlet's and the outlet's current).
+
     Args:
         path: the recording.
-        topics_and_fields: each "TOPIC:FIELD", e.g. "/controller/command:inlet_valve_current_a";
-            the version-1 names (say "/controller/command:current_a") are accepted too.
+        topics_and_fields: each "TOPIC:FIELD", e.g. "/controller/command:inlet_valve_current_a",
+            or "TOPIC:FIELD,FIELD,..." for several fields of one topic as columns; the version-1
+            names (say "/controller/command:current_a") are accepted too.
     """
     wanted = []
     for topic_and_field in topics_and_fields:
-        topic, separator, field = topic_and_field.rpartition(":")
-        if not separator or not topic or not field:
-            raise RecordError(f"{path}: {topic_and_field!r} should be TOPIC:FIELD")
+        topic, separator, fields = topic_and_field.rpartition(":")
+        names = fields.split(",")
+        if not separator or not topic or not all(names):
+            raise RecordError(
+                f"{path}: {topic_and_field!r} should be TOPIC:FIELD or TOPIC:FIELD,FIELD"
+            )
         # The recording is read under the current names, whatever version wrote it.
-        wanted.append(current_name(topic, field))
+        current = [current_name(topic, name) for name in names]
+        wanted.append((current[0][0], [name for _, name in current]))
     # Here, not at the top: reading MCAP loads mcap, protobuf and OpenCV, which a CSV record skips.
     from maskless.recording import read_recording
 
@@ -122,21 +135,29 @@ def read_mcap_signals(
     except ValueError as error:
         raise RecordError(str(error)) from None
     signals = []
-    for topic, field in wanted:
+    for topic, names in wanted:
         if topic not in recording.messages:
             raise RecordError(f"{path}: no topic {topic!r}; it has {sorted(recording.messages)}")
-        messages = recording.messages[topic]
-        if messages and field not in messages[0][1]:
-            raise RecordError(
-                f"{path}: topic {topic} has no field {field!r}; it has {sorted(messages[0][1])}"
-            )
-        times, values = recording.topic_arrays(topic, field)
-        values = np.asarray(values, dtype=float)
-        bad = np.flatnonzero(~np.isfinite(values))
-        if bad.size:
-            raise RecordError(f"{path}: {topic}:{field} message {bad[0]} is not a finite number")
+        columns = [_field_values(path, recording, topic, name) for name in names]
+        times = columns[0][0]
+        values = columns[0][1] if len(columns) == 1 else np.column_stack([v for _, v in columns])
         signals.append((times, values))
     return signals
+
+
+def _field_values(path, recording, topic: str, field: str) -> tuple[np.ndarray, np.ndarray]:
+    """(log times in ns, finite values) of ``topic``'s ``field`` in ``recording``."""
+    messages = recording.messages[topic]
+    if messages and field not in messages[0][1]:
+        raise RecordError(
+            f"{path}: topic {topic} has no field {field!r}; it has {sorted(messages[0][1])}"
+        )
+    times, values = recording.topic_arrays(topic, field)
+    values = np.asarray(values, dtype=float)
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        raise RecordError(f"{path}: {topic}:{field} message {bad[0]} is not a finite number")
+    return times, values
 
 
 def parse_range(text: str, samples: int, what: str) -> slice:

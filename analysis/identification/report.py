@@ -9,15 +9,21 @@ part and horizon re-estimates x(0) by least squares for that horizon, as MATLAB'
 The baselines a model must beat (shared/DESIGN.md): "next value = last value"; the same structure
 with no input (ARMA for the noise-model methods, AR for ARX); and the free response of the
 estimated initial state alone.
+
+A part whose input has m columns (the inlet and the outlet valve) gets an m-input model; its entry
+then says, per input, the DC gain and what the input contributes (``input_contributions``), and
+the diagnostics are per input, with whether the inputs can be told apart (``input_diagnostics``).
 """
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from maskless.analysis.identification import data_diagnostics
 from maskless.analysis.identification.fit_metrics import evaluate_fit, fit_percent
 from maskless.analysis.identification.innovations_model import InnovationsModel
+from maskless.analysis.identification.input_diagnostics import diagnose_inputs
 from maskless.analysis.identification.prediction_error import (
     estimate_ar,
     estimate_arx,
@@ -25,9 +31,9 @@ from maskless.analysis.identification.prediction_error import (
     parameter_count,
 )
 from maskless.analysis.identification.residual_analysis import residual_correlations
-from maskless.analysis.identification.subspace import default_horizon, estimate_n4sid
+from maskless.analysis.identification.subspace import HORIZON_RULE, estimate_n4sid
 from maskless.errors import ModelError
-from maskless.systems.linear_model import LinearModel
+from maskless.systems.linear_model import LinearModel, stable
 
 METHODS = ("pem", "armax", "arx", "n4sid")
 
@@ -42,7 +48,7 @@ EXPLAINS_SIM = 50.0
 
 @dataclass(frozen=True)
 class Part:
-    """A named stretch of a detrended record."""
+    """A named stretch of a detrended record: u (N,) for one input, (N, m) for m inputs."""
 
     name: str
     u: np.ndarray
@@ -57,20 +63,35 @@ class FittedModel:
         method: the estimator.
         model: the identified model, identification's result: innovations form with K and the
             one-step innovations variance on the estimation part, of the detrended record's
-            deviations in its units (the model file adds the offsets and units).
+            deviations in its units (the model file adds the offsets and units). None for an
+            m-input model, which the single-input ``LinearModel`` cannot hold: see
+            ``input_models``.
         polynomials: the same model as the estimator's coefficients (a, b, k), with the x(0)
             estimated on the estimation part; it runs the figures' predictions.
         estimated_initial_state: whether x(0) was estimated.
         parameters: d, the estimated parameters (initial states included when estimated).
         details: what else the estimator reports (e.g. N4SID's horizon and singular values).
+        input_models: per input, the single-input model from that input (the others held at
+            their operating points), with the whole model's K and variance; (model,) for one.
     """
 
     method: str
-    model: LinearModel
+    model: LinearModel | None
     polynomials: InnovationsModel
     estimated_initial_state: bool
     parameters: int
     details: dict = field(default_factory=dict)
+    input_models: tuple[LinearModel, ...] = ()
+
+    @property
+    def linear_models(self) -> tuple[LinearModel, ...]:
+        """One ``LinearModel`` per input: ``input_models``, or (``model``,) when not given."""
+        return self.input_models or (self.model,)
+
+    @property
+    def order(self) -> int:
+        """n, the model's number of states."""
+        return self.linear_models[0].order
 
 
 def _fitted_model(
@@ -88,13 +109,18 @@ def _fitted_model(
     # Every estimator leaves x(0) at zero when it does not estimate it, so the model's own x(0) is
     # the one the estimation part's one-step figures use.
     innovations = estimation.y - polynomials.predict(estimation.u, estimation.y)
+    variance = float(np.mean(innovations**2))
+    input_models = tuple(
+        polynomials.linear_model(variance, input_index=i) for i in range(polynomials.inputs)
+    )
     return FittedModel(
         method=method,
-        model=polynomials.linear_model(innovations_variance=float(np.mean(innovations**2))),
+        model=input_models[0] if polynomials.b.ndim == 1 else None,
         polynomials=polynomials,
         estimated_initial_state=estimated_initial_state,
         parameters=parameters,
         details=details or {},
+        input_models=input_models,
     )
 
 
@@ -105,18 +131,30 @@ def fit(
     sample_period_s: float,
     estimate_initial_state: bool = True,
     progress: Callable[[int, float], None] | None = None,
+    input_names: tuple[str, ...] | None = None,
 ) -> FittedModel:
     """Fits one model of ``order`` to ``part`` by ``method``.
 
     "pem" (innovations-form state space) and "armax" (the same model set, ARMAX(n, n, n)) fit by
     prediction error, "arx" by least squares (zero initial state), "n4sid" by subspace
-    identification (PO-MOESP).
+    identification (PO-MOESP). A part with m input columns gets an m-input model, whose
+    ``details["input_names"]`` are ``input_names``.
     """
+    fitted = _fit(method, part, order, sample_period_s, estimate_initial_state, progress)
+    if part.u.ndim == 1:
+        return fitted
+    names = input_names or tuple(f"input {i + 1}" for i in range(part.u.shape[1]))
+    return replace(fitted, details={**fitted.details, "input_names": list(names)})
+
+
+def _fit(method, part, order, sample_period_s, estimate_initial_state, progress) -> FittedModel:
+    """``fit`` without the input names."""
     count = parameter_count(
         order,
         with_input=True,
         with_noise_model=method != "arx",
         estimated_initial_state=estimate_initial_state and method != "arx",
+        inputs=1 if part.u.ndim == 1 else part.u.shape[1],
     )
     if method in ("pem", "armax"):
         polynomials = estimate_pem(
@@ -132,21 +170,23 @@ def fit(
         polynomials = estimate_arx(part.u, part.y, order, sample_period_s)
         return _fitted_model(method, polynomials, part, False, count)
     if method == "n4sid":
-        horizon = default_horizon(order)
-        polynomials, singular_values = estimate_n4sid(
+        subspace = estimate_n4sid(
             part.u,
             part.y,
             order,
             sample_period_s,
-            horizon=horizon,
             estimate_initial_state=estimate_initial_state,
             progress=progress,
         )
         details = {
-            "horizon": horizon,
-            "singular_values": singular_values[: 2 * order + 2].tolist(),
+            "horizon": {
+                "past": subspace.past_horizon,
+                "future": subspace.future_horizon,
+                "rule": HORIZON_RULE,
+            },
+            "singular_values": subspace.singular_values[: 2 * order + 2].tolist(),
         }
-        return _fitted_model(method, polynomials, part, estimate_initial_state, count, details)
+        return _fitted_model(method, subspace.model, part, estimate_initial_state, count, details)
     raise ValueError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
 
 
@@ -176,9 +216,13 @@ def part_figures(
         part.u, initial_state_for_part(fitted, part, estimation, "simulation")
     )
     metrics = evaluate_fit(part.y, one_step, fitted.parameters)
+    # An unstable system's simulation overflows on a long part: its fit is then -inf or NaN
+    # (inf - inf), which the verdict names, rather than a numpy warning.
+    with np.errstate(over="ignore", invalid="ignore"):
+        simulation_fit = fit_percent(part.y, simulated)
     figures = {
         "fit_percent_1step": metrics.fit_percent,
-        "fit_percent_sim": fit_percent(part.y, simulated),
+        "fit_percent_sim": simulation_fit,
         "mse": metrics.mse,
         "fpe": metrics.fpe,
         "naic": metrics.naic,
@@ -190,9 +234,48 @@ def part_figures(
         k_ahead = model.predict_k_steps(part.u, part.y, k_step)
         # The first k samples have no k-step prediction from data.
         figures[f"fit_percent_{k_step}step"] = fit_percent(part.y[k_step:], k_ahead[k_step:])
-    correlations = residual_correlations(part.y - one_step, part.u)
-    figures["residuals_outside_99_percent_band"] = correlations.fraction_outside()
+    if part.u.ndim == 1:
+        correlations = residual_correlations(part.y - one_step, part.u)
+        figures["residuals_outside_99_percent_band"] = correlations.fraction_outside()
+        return figures
+    # With m inputs the residuals' whiteness is one figure, their independence one per input.
+    per_input = [residual_correlations(part.y - one_step, u).fraction_outside() for u in part.u.T]
+    figures["residuals_outside_99_percent_band"] = {
+        "autocorrelation": per_input[0]["autocorrelation"],
+        "cross_correlation_per_input": [shares["cross_correlation"] for shares in per_input],
+    }
     return figures
+
+
+def input_contributions(
+    fitted: FittedModel, part: Part, estimation: Part, names: tuple[str, ...]
+) -> dict:
+    """What each input of an m-input model contributes on ``part``, by input name.
+
+    Per input: its DC gain (output unit per its unit; None for an integrating model); the
+    simulation fit with that input alone (the others at their operating points) and with it
+    removed, from the whole simulation's x(0); the fit points lost without it; and the share of the
+    output's variance about its mean that its own simulated part (from x(0) = 0) carries. An input
+    whose removal costs nothing explains nothing the others do not.
+    """
+    model = fitted.polynomials
+    x0 = initial_state_for_part(fitted, part, estimation, "simulation")
+    with np.errstate(over="ignore", invalid="ignore"):  # as in part_figures
+        whole = fit_percent(part.y, model.simulate(part.u, x0))
+        contributions = {}
+        for index, (name, single) in enumerate(zip(names, fitted.input_models, strict=True)):
+            alone, without = np.zeros_like(part.u), part.u.copy()
+            alone[:, index], without[:, index] = part.u[:, index], 0.0
+            fit_without = fit_percent(part.y, model.simulate(without, x0))
+            own = model.simulate(alone, np.zeros(model.order))
+            contributions[name] = {
+                "dc_gain": _dc_gain(single),
+                "fit_percent_sim_alone": fit_percent(part.y, model.simulate(alone, x0)),
+                "fit_percent_sim_without": fit_without,
+                "fit_points_lost_without": whole - fit_without,
+                "output_variance_share": float(np.var(own) / np.var(part.y)),
+            }
+    return contributions
 
 
 def baseline_figures(fitted: FittedModel, parts: list[Part], progress=None) -> dict:
@@ -205,6 +288,7 @@ def baseline_figures(fitted: FittedModel, parts: list[Part], progress=None) -> d
     model = fitted.polynomials
     if fitted.method == "arx":
         ar = estimate_ar(estimation.y, model.order, model.sample_period_s)
+        ar = replace(ar, b=np.zeros_like(model.b))  # as many (zero) inputs as the model
         without_input = _fitted_model("ar", ar, estimation, False, 0)
     else:
         arma = estimate_pem(
@@ -233,9 +317,9 @@ def baseline_figures(fitted: FittedModel, parts: list[Part], progress=None) -> d
             )
         }
         x0 = initial_state_for_part(fitted, part, estimation, "simulation")
-        figures["free_response"][part.name] = {
-            "fit_percent_sim": fit_percent(part.y, model.free_response(part.y.size, x0))
-        }
+        with np.errstate(over="ignore", invalid="ignore"):  # as in part_figures
+            free_response_fit = fit_percent(part.y, model.free_response(part.y.size, x0))
+        figures["free_response"][part.name] = {"fit_percent_sim": free_response_fit}
     return figures
 
 
@@ -262,10 +346,30 @@ EXPLAINS_VERDICT = "The input explains the output"
 NO_VERDICT = "No verdict"
 
 
-def verdict(figures: dict, baselines: dict, gains: dict, part_name: str, stable: bool) -> str:
+def instability(polynomials: InnovationsModel) -> str | None:
+    """What is unstable in a model, in words: its system, its one-step predictor, or both.
+
+    None when both are stable. The predictor's poles are the roots of C(z); an unstable one
+    makes every one-step figure and Kalman filter built on the model diverge.
+    """
+    unstable = []
+    if not stable(polynomials.poles()):
+        largest = np.abs(polynomials.poles()).max()
+        unstable.append(f"its system (largest pole magnitude {largest:.6f})")
+    if not stable(polynomials.predictor_poles()):
+        largest = np.abs(polynomials.predictor_poles()).max()
+        unstable.append(f"its one-step predictor (largest root of C(z) {largest:.6f})")
+    return " and ".join(unstable) or None
+
+
+def verdict(
+    figures: dict, baselines: dict, gains: dict, part_name: str, unstable: str | None
+) -> str:
     """Whether the input explains the output, in plain words, judged on one part.
 
-    The judgement uses that part's figures and the model's ``margins`` over the baselines on it.
+    The judgement uses that part's figures and the model's ``margins`` over the baselines on it;
+    ``unstable`` (``instability``'s words, None for a stable model) is said at the end in
+    capitals.
 
     "explains the output": the input-driven simulation fits at least 50 % and beats the initial
     state's free response (or zero) by 10 points. "essentially nothing": dropping the input costs
@@ -281,13 +385,13 @@ def verdict(figures: dict, baselines: dict, gains: dict, part_name: str, stable:
         ],
         "free_response fit_percent_sim": baselines["free_response"][part_name]["fit_percent_sim"],
     }
+    warning = f"; the model is UNSTABLE: {unstable}" if unstable else ""
     undefined = [name for name, value in judged.items() if np.isnan(value)]
     if undefined:
         # NaN compares false with everything, so a threshold would pass a verdict on nothing.
         return (
             f"{NO_VERDICT}: on the {part_name} part, {', '.join(undefined)} "
-            f"{'is' if len(undefined) == 1 else 'are'} NaN"
-            + ("; the model is UNSTABLE." if not stable else ".")
+            f"{'is' if len(undefined) == 1 else 'are'} NaN{warning}."
         )
     structure, order = baselines["without_input_structure"].upper(), baselines["order"]
     evidence = (
@@ -296,10 +400,8 @@ def verdict(figures: dict, baselines: dict, gains: dict, part_name: str, stable:
         f"{figures['fit_percent_1step']:.3f} %, and the model driven by the input alone fits the "
         f"{part_name} part {figures['fit_percent_sim']:.1f} % "
         f"({baselines['free_response'][part_name]['fit_percent_sim']:.1f} % from its initial "
-        "state alone)"
+        f"state alone){warning}"
     )
-    if not stable:
-        evidence += "; the model is UNSTABLE"
     if figures["fit_percent_sim"] >= EXPLAINS_SIM and gains["free_response"] >= MARGIN_SIM:
         return f"{EXPLAINS_VERDICT}: {evidence}."
     if gains["without_input"] < MARGIN_1STEP and gains["free_response"] < MARGIN_SIM:
@@ -317,6 +419,10 @@ def identify(
     progress: Callable[[int, float], None] | None = None,
     k_step: int | None = None,
     overlap: bool = False,
+    record_diagnostics: data_diagnostics.RecordDiagnostics
+    | tuple[data_diagnostics.RecordDiagnostics, ...]
+    | None = None,
+    input_names: tuple[str, ...] | None = None,
 ) -> tuple[dict, list[FittedModel]]:
     """Fits each order and builds the report (the JSON of `maskless identify`).
 
@@ -332,46 +438,39 @@ def identify(
         k_step: k for the additional k-step-ahead fit; None for none.
         overlap: the validation part shares samples with the estimation part; the report and
             the verdict then say that the validation figures are not a holdout.
+        record_diagnostics: the whole record's diagnostics (offsets, drift, holds, clipping),
+            reported and warned with the parts' own (``data_diagnostics.diagnose``); with m
+            inputs a tuple, one per input (``diagnose_record`` of that input and the output).
+        input_names: with m inputs, their names (default "input 1", ...), keying the per-input
+            figures; ignored for one input.
     """
     parts = [estimation, validation]
+    inputs = 1 if estimation.u.ndim == 1 else estimation.u.shape[1]
+    if inputs > 1 and input_names is None:
+        input_names = tuple(f"input {i + 1}" for i in range(inputs))
+    if inputs > 1 and len(input_names) != inputs:
+        raise ValueError(f"input_names = {input_names!r}: expected {inputs} names, one per input")
     entries, fitted_models, baselines = [], [], []
     naive = naive_figures(parts)
     for order in orders:
-        fitted = fit(method, estimation, order, sample_period_s, estimate_initial_state, progress)
-        model, polynomials = fitted.model, fitted.polynomials
+        fitted = fit(
+            method,
+            estimation,
+            order,
+            sample_period_s,
+            estimate_initial_state,
+            progress,
+            input_names if inputs > 1 else None,
+        )
         figures = {part.name: part_figures(fitted, part, estimation, k_step) for part in parts}
         model_baselines = baseline_figures(fitted, parts, progress)
-        stable = model.is_stable()
         gains = margins(figures[validation.name], model_baselines, naive, validation.name)
-        entry = {
-            "method": method,
-            "order": order,
-            "ts": sample_period_s,
-            **{name: getattr(model, name).tolist() for name in ("A", "B", "C", "D", "K")},
-            "initial_state": "estimated" if fitted.estimated_initial_state else "zero",
-            "parameters": fitted.parameters,
-            "poles": [[float(p.real), float(p.imag)] for p in model.poles()],
-            "stable": stable,
-            "predictor_stable": bool(np.all(np.abs(polynomials.predictor_poles()) < 1)),
-            "dc_gain": _dc_gain(model),
-            **fitted.details,
-            **figures,
-            "margins_on_validation": gains,
-            "verdict": verdict(
-                figures[validation.name], model_baselines, gains, validation.name, stable
-            ),
-        }
-        if method == "armax":
-            entry["polynomials"] = {
-                "A": [1.0, *polynomials.a.tolist()],
-                "B": [0.0, *polynomials.b.tolist()],
-                "C": [1.0, *polynomials.c.tolist()],
+        entry = model_entry(fitted, figures, model_baselines, gains, validation.name)
+        if inputs > 1:
+            entry["input_contributions"] = {
+                part.name: input_contributions(fitted, part, estimation, input_names)
+                for part in parts
             }
-        if not stable:
-            entry["warning"] = (
-                f"the order-{order} model is unstable (largest pole magnitude "
-                f"{np.abs(model.poles()).max():.6f}); do not design a controller on it"
-            )
         entries.append(entry)
         fitted_models.append(fitted)
         baselines.append(model_baselines)
@@ -385,6 +484,14 @@ def identify(
             "the validation part overlaps the estimation part: its figures are not a holdout "
             "and flatter the models"
         )
+    warnings += [entry["warning"] for entry in entries if "warning" in entry]
+    # Data diagnostics (issue 14): the excitation, the fitted poles near 1, the record's own.
+    poles_by_order = {m.order: m.linear_models[0].poles() for m in fitted_models}
+    if inputs == 1:
+        diagnostics = data_diagnostics.diagnose(estimation.u, poles_by_order, record_diagnostics)
+    else:
+        diagnostics = diagnose_inputs(estimation.u, poles_by_order, input_names, record_diagnostics)
+    warnings += diagnostics.warnings
     initial = "estimated" if estimate_initial_state and method != "arx" else "zero"
     report = {
         "horizons": {
@@ -405,9 +512,63 @@ def identify(
         "models": entries,
         "baselines": {"naive_last_value": naive, "per_model": baselines},
         "warnings": warnings,
-        "verdict": best["verdict"] + (f" Warning: {warnings[0]}." if warnings else ""),
+        "diagnostics": diagnostics.as_dict(),
+        "verdict": best["verdict"] + "".join(f" Warning: {warning}." for warning in warnings),
     }
     return report, fitted_models
+
+
+def model_entry(
+    fitted: FittedModel, figures: dict, baselines: dict, gains: dict, part_name: str
+) -> dict:
+    """One model's entry in the report: the model, its figures, its verdict on ``part_name``.
+
+    A model with an unstable system or one-step predictor gets a "warning" naming which, and
+    its verdict says so.
+    """
+    polynomials = fitted.polynomials
+    model = fitted.linear_models[0]  # A, C, K and the poles are every input's
+    unstable = instability(polynomials)
+    entry = {
+        "method": fitted.method,
+        "order": model.order,
+        "ts": model.sample_period_s,
+        **{name: getattr(model, name).tolist() for name in ("A", "B", "C", "D", "K")},
+        "initial_state": "estimated" if fitted.estimated_initial_state else "zero",
+        "parameters": fitted.parameters,
+        "poles": [[float(p.real), float(p.imag)] for p in model.poles()],
+        "stable": model.is_stable(),
+        "predictor_stable": stable(polynomials.predictor_poles()),
+        "dc_gain": _dc_gain(model),
+        **fitted.details,
+        **(_input_matrices(fitted) if fitted.model is None else {}),
+        **figures,
+        "margins_on_validation": gains,
+        "verdict": verdict(figures[part_name], baselines, gains, part_name, unstable),
+    }
+    if fitted.method == "armax":
+        entry["polynomials"] = {
+            "A": [1.0, *polynomials.a.tolist()],
+            "B": [0.0, *polynomials.b.tolist()]
+            if polynomials.b.ndim == 1
+            else [[0.0, *column] for column in polynomials.b.T.tolist()],
+            "C": [1.0, *polynomials.c.tolist()],
+        }
+    if unstable:
+        entry["warning"] = (
+            f"the order-{model.order} {fitted.method} model is unstable: {unstable}; its "
+            "figures diverge, so do not predict with it or design a controller on it"
+        )
+    return entry
+
+
+def _input_matrices(fitted: FittedModel) -> dict:
+    """An m-input model's B (n x m) and D (1 x m), and its DC gain per input (a list)."""
+    return {
+        "B": np.column_stack([single.B for single in fitted.input_models]).tolist(),
+        "D": np.zeros((1, len(fitted.input_models))).tolist(),
+        "dc_gain": [_dc_gain(single) for single in fitted.input_models],
+    }
 
 
 def _dc_gain(model: LinearModel) -> float | None:

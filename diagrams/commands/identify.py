@@ -6,6 +6,10 @@ Reads the input (valve current) and output (head distance or height) from CSV fi
 line, or a column) or from a maskless MCAP recording (TOPIC:FIELD), detrends them, fits each order
 on the estimation part and judges it on both parts. Writes DIR/report.json, one model file per order
 (discrete A, B, C, D, K, Ts, offsets and units, as YAML), compare plots and residual plots.
+
+Several inputs (the inlet and the outlet valve, --input-column TOPIC:FIELD,FIELD or NAME,NAME) give
+one model of several inputs (B with a column each), reported per input; the designs and plants
+drive one input and refuse its model file in one line.
 """
 
 import argparse
@@ -13,6 +17,7 @@ import json
 from pathlib import Path
 
 from maskless.analysis.identification.model_file import MODEL_FILE_UNITS
+from maskless.analysis.identification.records import VALVE_CURRENTS_FIELDS
 from maskless.diagrams.cli import add_out_argument, given_labels
 from maskless.diagrams.identification_run import (
     DEFAULT_MCAP_INPUT,
@@ -35,6 +40,8 @@ FLAG_OF_FIELD = {
     "validation": "--validation",
     "detrend": "--detrend",
     "k_step": "--k-step",
+    "input_unit": "--input-unit",
+    "output_unit": "--output-unit",
 }
 
 
@@ -53,7 +60,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--input-column",
         default=None,
         metavar="NAME|INDEX|TOPIC:FIELD",
-        help=f"CSV column, or MCAP TOPIC:FIELD (default for MCAP: {DEFAULT_MCAP_INPUT})",
+        help=f"CSV column, or MCAP TOPIC:FIELD (default for MCAP: {DEFAULT_MCAP_INPUT}); "
+        "several inputs as NAME,NAME or TOPIC:FIELD,FIELD (both valves: "
+        f"{VALVE_CURRENTS_FIELDS}) for one model of several inputs",
     )
     parser.add_argument(
         "--output-column",
@@ -76,10 +85,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--method",
-        choices=METHODS,
+        choices=(*METHODS, "hammerstein"),
         default="pem",
         help="pem: innovations-form state space; armax: the same by polynomials; "
-        "arx: least squares; n4sid: subspace (PO-MOESP) (default pem)",
+        "arx: least squares; n4sid: subspace (PO-MOESP); hammerstein: each valve's static map "
+        "and the dynamics, from a recording of both valves (default pem)",
     )
     parser.add_argument(
         "--estimation",
@@ -116,14 +126,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--input-unit",
         default=None,
-        choices=MODEL_FILE_UNITS,
-        help="unit of the input: m, mm, A or mA (default mA for CSV, the field's unit for MCAP)",
+        metavar="UNIT",
+        help="unit of the input, any text, shown as given (default mA for CSV, the field's unit "
+        f"for MCAP; several inputs: one for all or UNIT,UNIT); only "
+        f"{', '.join(MODEL_FILE_UNITS)} convert to the SI a design loads",
     )
     parser.add_argument(
         "--output-unit",
         default=None,
-        choices=MODEL_FILE_UNITS,
-        help="unit of the output (default mm for CSV, the field's unit for MCAP)",
+        metavar="UNIT",
+        help="unit of the output, e.g. mm or degC (default mm for CSV, the field's unit for MCAP)",
     )
     add_out_argument(parser, "identification", "the report, models and plots")
     parser.add_argument("--json", action="store_true", help="print report.json to stdout")
@@ -160,6 +172,18 @@ def identification_request(args: argparse.Namespace) -> IdentificationRequest:
 
 def run_command(args: argparse.Namespace) -> int:
     """`maskless identify`: returns the process exit code."""
+    if args.method == "hammerstein":
+        from maskless.diagrams.hammerstein_run import (
+            format_hammerstein_report,
+            identify_hammerstein_to_files,
+        )
+
+        estimation = {"estimation": args.estimation, "validation": args.validation}
+        report = identify_hammerstein_to_files(
+            args.input, args.ts, parse_orders(args.orders), args.out, **estimation
+        )
+        print(json.dumps(report) if args.json else format_hammerstein_report(report))
+        return 0
     report = identify_to_files(identification_request(args), args.out)
     print(json.dumps(report) if args.json else format_identification_report(report, args.out))
     return 0

@@ -10,7 +10,7 @@ checks its spectrum for as small a crest factor as possible. The reasons carry o
   that puts more power into the plant for the same peak gives a better signal-to-noise ratio
   before clipping distorts it.
 
-Three designs are offered, all returned as an :class:`ExcitationSignal` of uniformly sampled
+Four designs are offered, all returned as an :class:`ExcitationSignal` of uniformly sampled
 currents in amperes:
 
 - ``uniform``: i.i.d. uniform white noise on [offset - A, offset + A] (paper Eq. 22), whose
@@ -18,6 +18,9 @@ currents in amperes:
 - ``prbs``: a maximum-length binary sequence (crest factor about 1, flat spectrum over a period).
 - ``multisine``: equal-amplitude sines on the period's frequency grid inside a chosen band, with
   Schroeder phases for a low crest factor.
+- ``multilevel``: random levels of an evenly spaced grid held for random durations, so an
+  identification sees the valve's whole static curve, not just two points of it (a Hammerstein
+  fit needs that; paper Fig. 9).
 
 The design functions are pure numpy/scipy; :func:`add_excitation_source` turns a designed signal
 into a Drake ``TrajectorySource`` for simulation.
@@ -46,6 +49,20 @@ _HOLD_UNTIL_S = 1e9
 _SAMPLE_COUNT_RTOL = 1e-9
 
 MULTISINE_PHASES = ("schroeder", "random", "zero")
+
+# The multilevel design's defaults, chosen for the pneumatic plant (assets/pneumatic.yaml). Its
+# slow pole's time constant, linearised with the outlet shut
+# (pneumatic_design.linearize_pneumatic_plant), grows from 0.67 s at 62 mA to 9.0 s at 165 mA;
+# its other modes (spool, head on the air spring) are faster than 0.05 s, beyond what the 15 Hz
+# loop resolves. The longest hold, 40 s, is more than four of the slowest time constants, so holds
+# at the top level can settle (e^-4 < 2 % left) and show the static gain; the shortest, 1 s, is
+# about 1.5 of the fastest, so the record also holds short steps' transients.
+# tests/test_excitation_run.py checks both against the linearised plant.
+MULTILEVEL_HOLD_S = (1.0, 40.0)
+# Over the whole 0-165 mA range, 12 levels are 15 mA apart, about three times the valve's
+# hysteresis band (5 % of its 105 mA span), so every switch moves the spool; four of them lie
+# below the 60 mA starting current, where no air flows.
+MULTILEVEL_LEVELS = 12
 
 
 @dataclass(frozen=True, eq=False)  # eq=False: element-wise array comparison has no single truth.
@@ -165,7 +182,13 @@ def uniform_white_noise(
 
 
 def prbs(
-    amplitude, duration_s, sample_period_s, seed, offset=0.0, clock_periods=1
+    amplitude,
+    duration_s,
+    sample_period_s,
+    seed,
+    offset=0.0,
+    clock_periods=1,
+    half_period_shift=False,
 ) -> ExcitationSignal:
     """A maximum-length pseudo-random binary sequence with values offset +/- A.
 
@@ -183,6 +206,11 @@ def prbs(
         offset: Mid level, the operating point (A).
         clock_periods: Samples each bit is held (positive integer); larger values move the
             excitation power to lower frequencies (first spectral null at 1 / (clock_periods Ts)).
+        half_period_shift: Start the same sequence P // 2 bits later (P its period). Over a
+            period the two sequences' circular cross-correlation is then the MLS's
+            autocorrelation shifted by P // 2: -1 / P at every lag but P // 2 (half a period),
+            so a second input that no model's lags can confuse with the first (another seed
+            would shift the sequence by a random, possibly short, lag).
     """
     num_samples = _validated_common(amplitude, duration_s, sample_period_s, seed, offset)
     _require_positive_int("clock_periods", clock_periods)
@@ -195,7 +223,12 @@ def prbs(
     rng = np.random.default_rng(seed)
     state_int = int(rng.integers(1, 2**register_bits))
     state = np.array([(state_int >> i) & 1 for i in range(register_bits)], dtype=np.int8)
-    bits, _ = max_len_seq(register_bits, state=state, length=min(num_bits, 2**register_bits - 1))
+    period_bits = 2**register_bits - 1
+    if half_period_shift:
+        # The whole period (shorter than twice the bits needed), started half of it later.
+        bits = np.roll(max_len_seq(register_bits, state=state)[0], -(period_bits // 2))
+    else:
+        bits, _ = max_len_seq(register_bits, state=state, length=min(num_bits, period_bits))
     bits = np.resize(bits, num_bits)  # repeats the period in the (impractical) > 32-bit case
     levels = np.repeat(2.0 * bits.astype(float) - 1.0, clock_periods)[:num_samples]
     return _signal(offset + amplitude * levels, sample_period_s, "prbs")
@@ -268,15 +301,107 @@ def multisine(
     return _signal(offset + waveform, sample_period_s, "multisine")
 
 
-_DESIGNS = {"multisine": multisine, "prbs": prbs, "uniform": uniform_white_noise}
+def multilevel_prbs(
+    amplitude,
+    duration_s,
+    sample_period_s,
+    seed,
+    offset=0.0,
+    num_levels=MULTILEVEL_LEVELS,
+    hold_s=MULTILEVEL_HOLD_S,
+) -> ExcitationSignal:
+    """Random levels held for random durations: an amplitude-rich excitation for a Hammerstein fit.
+
+    A binary PRBS visits two currents, so it shows the valve's static curve at two points; a
+    Hammerstein fit (paper Fig. 9) must see the whole curve, from below the starting current
+    (no flow) up to saturation. Design choices, and why:
+
+    - Levels: ``num_levels`` evenly spaced values from offset - A to offset + A, ends included.
+      A fixed grid visits every level many times (noise and valve hysteresis average out, and
+      each level is reached from above and from below) and makes the level distribution
+      checkable. Each hold's level is drawn uniformly from the levels other than the current
+      one, so every switch is a real step and a hold lasts exactly its drawn time; that chain's
+      stationary distribution is uniform, so over many holds each level is equally frequent.
+      Space the levels wider than the valve's hysteresis band, so every switch moves the spool.
+    - Hold times: whole samples drawn uniformly from [ceil(min / Ts), floor(max / Ts)]. Long
+      holds let the output settle, which is what shows the static gain at a level: make the
+      longest about four of the plant's slowest time constants (e^-4 < 2 % left). Short holds
+      put power at the frequencies of the dynamics: make the shortest about the plant's fastest
+      time constant of interest. The defaults are the pneumatic plant's (``MULTILEVEL_HOLD_S``
+      and ``MULTILEVEL_LEVELS`` give its measured time constants and hysteresis).
+
+    The draws come from ``np.random.default_rng(seed)``: first the holds, then the first level,
+    then the steps between levels, so the same seed gives the same signal bit for bit. The last
+    hold is cut short where the duration ends.
+
+    Args:
+        amplitude: Half the span of the levels, A (A).
+        duration_s: Signal length (s); N = floor(duration_s / sample_period_s) samples.
+        sample_period_s: Sample period Ts (s).
+        seed: Non-negative integer seed of ``np.random.default_rng``.
+        offset: Centre of the levels (A).
+        num_levels: Number of levels, an integer of at least 2.
+        hold_s: (shortest, longest) hold in s, with Ts <= shortest <= longest.
+    """
+    num_samples = _validated_common(amplitude, duration_s, sample_period_s, seed, offset)
+    integer = not isinstance(num_levels, bool) and isinstance(num_levels, numbers.Integral)
+    if not integer or num_levels < 2:
+        raise ConfigError(f"num_levels must be an integer of at least 2; got {num_levels!r}")
+    shortest, longest = hold_samples(hold_s, sample_period_s)
+    rng = np.random.default_rng(seed)
+    # Enough holds to fill the record even if every one is the shortest.
+    num_holds = -(-num_samples // shortest)
+    holds = rng.integers(shortest, longest + 1, size=num_holds)
+    first = rng.integers(num_levels)
+    # A step of 1 to L - 1 levels (mod L) never lands on the level it leaves.
+    steps = rng.integers(1, num_levels, size=num_holds - 1)
+    level_index = (first + np.concatenate([[0], np.cumsum(steps)])) % num_levels
+    levels = np.linspace(offset - amplitude, offset + amplitude, num_levels)
+    values = np.repeat(levels[level_index], holds)[:num_samples]
+    return _signal(values, sample_period_s, "multilevel")
+
+
+def hold_samples(hold_s, sample_period_s) -> tuple[int, int]:
+    """(shortest, longest) hold of a multilevel design in whole samples, checked.
+
+    Args:
+        hold_s: (shortest, longest) hold (s); both at least one sample, shortest <= longest.
+        sample_period_s: Sample period Ts (s).
+    """
+    try:
+        shortest_s, longest_s = (float(h) for h in hold_s)
+    except (TypeError, ValueError):
+        raise ConfigError(
+            f"hold_s must be a pair (shortest, longest) in s; got {hold_s!r}"
+        ) from None
+    finite = math.isfinite(shortest_s) and math.isfinite(longest_s)
+    at_least_a_sample = finite and shortest_s >= sample_period_s * (1.0 - _SAMPLE_COUNT_RTOL)
+    # The same forgiveness as sample_count, upwards: 1 s at 1/15 s is 15 samples, not 16.
+    shortest = math.ceil(shortest_s / sample_period_s * (1.0 - _SAMPLE_COUNT_RTOL)) if finite else 0
+    longest = sample_count(longest_s, sample_period_s) if finite else 0
+    if not (at_least_a_sample and shortest <= longest):
+        raise ConfigError(
+            f"hold_s must satisfy {sample_period_s:g} s (one sample) <= shortest <= longest, "
+            f"with a whole sample between them; got {hold_s!r}"
+        )
+    return shortest, longest
+
+
+_DESIGNS = {
+    "multilevel": multilevel_prbs,
+    "multisine": multisine,
+    "prbs": prbs,
+    "uniform": uniform_white_noise,
+}
 
 
 def excitation_signal(kind, **kwargs) -> ExcitationSignal:
     """Designs a signal by name, e.g. from a configuration file.
 
     Args:
-        kind: "uniform", "prbs" or "multisine".
-        **kwargs: Arguments of :func:`uniform_white_noise`, :func:`prbs` or :func:`multisine`.
+        kind: "uniform", "prbs", "multisine" or "multilevel".
+        **kwargs: Arguments of :func:`uniform_white_noise`, :func:`prbs`, :func:`multisine` or
+            :func:`multilevel_prbs`.
     """
     if kind not in _DESIGNS:
         raise ConfigError(f"kind must be one of {sorted(_DESIGNS)}; got {kind!r}")

@@ -271,7 +271,10 @@ def add_safety_supervisor(
         )
     )
     latched = {reason: Variable(f"latched_{reason}") for reason in REASONS}
-    mode = Variable("mode")
+    # What the valves get follows from the latched reasons alone, so it is no state of its own:
+    # the update would evaluate every check again to set it.
+    venting = _acting(latched, VENT)
+    supervising = logical_or(venting, _acting(latched, HOLD))  # holding or venting
     held_inlet, held_outlet = Variable("held_inlet_a"), Variable("held_outlet_a")
     averaging = Variable("averaging")  # 1 once the held currents' average has its first command
     # Durations as whole ticks: a sum of float periods drifts, and a limit that is no whole number
@@ -300,7 +303,14 @@ def add_safety_supervisor(
         config.max_pressure_step_pa + config.pressure_per_current_pa_per_a * command_activity
     )
     inlet_out, outlet_out = _valve_currents(
-        inlet, outlet, mode, held_inlet, held_outlet, commands_finite, outlet_saturation_a
+        inlet,
+        outlet,
+        supervising,
+        venting,
+        held_inlet,
+        held_outlet,
+        commands_finite,
+        outlet_saturation_a,
     )
     at_full_inlet = inlet_out >= inlet_saturation_a
     watching = elapsed >= ticks(config.start_grace_s)
@@ -329,7 +339,7 @@ def add_safety_supervisor(
         "pressure_jump": logical_and(
             logical_and(
                 logical_and(
-                    logical_and(mode < 0.5, logical_and(watching, elapsed >= 2)),
+                    logical_and(logical_not(supervising), logical_and(watching, elapsed >= 2)),
                     _within(estimated - reference, -tolerance_m, tolerance_m),
                 ),
                 _within(
@@ -359,22 +369,12 @@ def add_safety_supervisor(
     after_reset = {r: if_then_else(cleared, 0.0, Expression(latched[r])) for r in REASONS}
     next_latched = [if_then_else(failing[r], 1.0, after_reset[r]) for r in REASONS]
 
-    # Counts of 0/1 terms: a few nodes where a chain of ors of next_latched would repeat every
-    # check (a SymbolicVectorSystem evaluates each expression whole).
-    newly = {r: if_then_else(failing[r], 1.0, 0.0) for r in REASONS}
-
-    def latched_count(reasons):
-        return sum(after_reset[r] + newly[r] for r in reasons)
-
-    def acting(action):
-        return latched_count([r for r in REASONS if SAFE_ACTIONS[r] == action]) > 0.5
-
-    next_mode = if_then_else(acting(VENT), 2.0, if_then_else(acting(HOLD), 1.0, 0.0))
+    nothing_latched = _latched_count(latched, REASONS) < 0.5
     # The held currents follow the commands that pass while nothing was latched and the inlet is
     # not fully open (the tick that first sees a fault still counts: its command was computed a
     # tick before); the average starts at the first such command.
     keep = logical_and(
-        logical_and(sum(Expression(latched[r]) for r in REASONS) < 0.5, commands_finite),
+        logical_and(nothing_latched, commands_finite),
         logical_and(logical_not(at_full_inlet), logical_not(cleared)),
     )
     weight = if_then_else(
@@ -385,19 +385,23 @@ def add_safety_supervisor(
         for held, command in ((held_inlet, inlet), (held_outlet, outlet))
     ]
     next_inside = if_then_else(on_target, inside + 1, 0.0)
-    # The beam waits for a reset too: a latched reason holds it whatever the estimate says.
     next_allowed = if_then_else(
         logical_and(
-            logical_and(latched_count(REASONS) < 0.5, commands_finite),
-            logical_and(on_target, inside + 1 >= ticks(config.beam_dwell_s)),
+            commands_finite, logical_and(on_target, inside + 1 >= ticks(config.beam_dwell_s))
         ),
         1.0,
         0.0,
     )
     # Checked again on this instant's inputs: a reference that steps at a tick holds the beam from
-    # that instant; so does a command that is not finite.
+    # that instant; so does a command that is not finite. The beam waits for a reset too: a
+    # latched reason holds it whatever the estimate says.
     beam_hold = if_then_else(
-        logical_and(beam_allowed > 0.5, logical_and(on_target, commands_finite)), 0.0, 1.0
+        logical_and(
+            logical_and(beam_allowed > 0.5, nothing_latched),
+            logical_and(on_target, commands_finite),
+        ),
+        0.0,
+        1.0,
     )
     remembered = [
         if_then_else(commands_finite, Expression(command), Expression(last))
@@ -409,7 +413,6 @@ def add_safety_supervisor(
         if_then_else(commands_finite, command_activity, Expression(last_activity)),
     )
     state_and_next = [
-        (mode, next_mode),
         (held_inlet, next_held[0]),
         (held_outlet, next_held[1]),
         *zip(latched.values(), next_latched, strict=True),
@@ -442,7 +445,7 @@ def add_safety_supervisor(
             ("inlet_valve_current_a", [inlet_out]),
             ("outlet_valve_current_a", [outlet_out]),
             ("reasons", [Expression(latched[r]) for r in REASONS]),
-            ("mode", [Expression(mode)]),
+            ("mode", [if_then_else(venting, 2.0, if_then_else(supervising, 1.0, 0.0))]),
             ("beam_hold", [beam_hold]),
         ],
         state=[variable for variable, _ in state_and_next],
@@ -454,6 +457,16 @@ def add_safety_supervisor(
 make_safety_supervisor = diagram_form(add_safety_supervisor)
 
 
+def _latched_count(latched, reasons):
+    """How many of ``reasons`` are latched."""
+    return sum(Expression(latched[r]) for r in reasons)
+
+
+def _acting(latched, action):
+    """A reason whose safe action is ``action`` is latched."""
+    return _latched_count(latched, [r for r in REASONS if SAFE_ACTIONS[r] == action]) > 0.5
+
+
 def _commands_finite(inlet, outlet):
     """Both commands are numbers a valve driver takes."""
     return logical_and(
@@ -462,10 +475,11 @@ def _commands_finite(inlet, outlet):
     )
 
 
-def _valve_currents(inlet, outlet, mode, held_inlet, held_outlet, commands_finite, outlet_full_a):
+def _valve_currents(
+    inlet, outlet, supervising, venting, held_inlet, held_outlet, commands_finite, outlet_full_a
+):
     """What the valves get: the commands, the held currents, or venting (``MODES``)."""
-    holding = logical_or(mode > 0.5, logical_not(commands_finite))
-    venting = mode > 1.5
+    holding = logical_or(supervising, logical_not(commands_finite))
     inlet_out = if_then_else(
         venting, 0.0, if_then_else(holding, Expression(held_inlet), Expression(inlet))
     )

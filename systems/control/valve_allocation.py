@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import pydrake.math as dm
 
+from maskless.errors import ModelError
+
 
 @dataclass(frozen=True)
 class SplitRangeAllocation:
@@ -158,3 +160,63 @@ def current_split_allocation(inlet, outlet) -> SplitRangeAllocation:
         outlet.starting_current_a,
         outlet.saturation_current_a,
     )
+
+
+def static_curve_inverse(model) -> SplitRangeAllocation:
+    """The split range for a Hammerstein model: the inverse of its valves' static curves.
+
+    The command is the steady output change from every valve shut (the model's output unit): a
+    positive one opens the inlet to the current whose static curve (map times DC gain) gives it,
+    a negative one the outlet; both valves' dead bands are skipped. The controller then sees the
+    linear part with a unit DC gain (``HammersteinModel.valve_linear_model(0)``). The maps are
+    piecewise linear, so the inverse is exact: the curves' knots with the axes swapped.
+
+    Args:
+        model: a ``hammerstein_model.HammersteinModel`` with an inlet map, and an outlet map
+            when it has two inputs.
+
+    Raises:
+        ModelError: the inlet does not raise the output, or the outlet does not lower it.
+    """
+    gains = model.dc_gains()
+    if not gains[0] > 0 or (model.inputs > 1 and not gains[1] < 0):
+        raise ModelError(
+            f"static gains {gains.tolist()}: expected the inlet to raise the output (> 0) and the "
+            "outlet to lower it (< 0), as a split range needs"
+        )
+    epsilon = 1e-6 * float(np.sum(np.abs(gains)))
+    inlet_commands, inlet_currents = _strictly_increasing(
+        gains[0] * model.maps[0].openings, model.maps[0].currents, epsilon
+    )
+    knots, inlet, outlet = [inlet_commands], [inlet_currents], [np.zeros(inlet_commands.size)]
+    if model.inputs > 1:
+        outlet_commands, outlet_currents = _strictly_increasing(
+            -gains[1] * model.maps[1].openings, model.maps[1].currents, epsilon
+        )
+        # The outlet's commands are negative, largest current first.
+        outlet_commands, outlet_currents = -outlet_commands[::-1], outlet_currents[::-1]
+        # At command 0 the outlet sits at its starting current; a hair above, the inlet at its own.
+        inlet_commands = inlet_commands.copy()
+        inlet_commands[0] += epsilon
+        knots = [outlet_commands, inlet_commands]
+        inlet = [np.zeros(outlet_commands.size), inlet_currents]
+        outlet = [outlet_currents, np.zeros(inlet_commands.size)]
+    return SplitRangeAllocation(
+        np.concatenate(knots), np.concatenate(inlet), np.concatenate(outlet)
+    )
+
+
+def _strictly_increasing(commands, currents, epsilon):
+    """(commands, currents) sorted, a run of equal commands kept as its first and last knot.
+
+    A run of equal commands is a flat stretch of the map: the command gets the run's smallest
+    current, and ``epsilon`` above it the run's largest, where the map rises again (a knot a hair
+    above keeps the allocation a function).
+    """
+    order = np.lexsort((currents, commands))
+    commands, currents = commands[order], currents[order].copy()
+    new_run = np.concatenate([[True], np.diff(commands) > 0])
+    run_end = np.concatenate([new_run[1:], [True]])
+    kept = new_run | run_end
+    commands = np.where(run_end & ~new_run, commands + epsilon, commands)
+    return commands[kept], currents[kept]

@@ -1,0 +1,186 @@
+"""`maskless identify --method hammerstein`: both valves' maps and the dynamics from a recording.
+
+Reads the inlet's and the outlet's currents and the fused head height from a maskless MCAP
+recording (``maskless excite`` driving both valves), fits a Hammerstein model per order on the
+estimation part (``analysis.identification.hammerstein``) and judges it on the validation part
+by simulation fit (from rest at the part's first currents) against the linear model of the same
+order, fitted by the same output-error code. Writes OUT/report.json, one model file per order
+(``model_file.hammerstein_file_contents``, in A and m) and a plot of each valve's static curve and
+the validation simulation.
+"""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from maskless.analysis.identification.fit_metrics import fit_percent
+from maskless.analysis.identification.hammerstein import estimate_hammerstein
+from maskless.analysis.identification.model_file import (
+    VALVE_NAMES,
+    hammerstein_file_contents,
+    model_from_contents,
+)
+from maskless.analysis.identification.records import (
+    VALVE_CURRENTS_FIELDS,
+    parse_range,
+    read_mcap_signals,
+)
+from maskless.diagrams.output_folder import output_folder
+from maskless.errors import RecordError
+from maskless.recording import FUSION_TOPIC
+
+DEFAULT_OUTPUT = f"{FUSION_TOPIC}:head_height_m"
+# The Hammerstein model must beat the linear one by this many points of validation fit for the
+# verdict to call the valve maps worth their parameters.
+_MARGIN_POINTS = 5.0
+
+
+def read_two_valve_record(recording: Path, output_field: str = DEFAULT_OUTPUT):
+    """(currents (N, 2) in A, output (N,), its period in s) from a maskless recording.
+
+    Raises:
+        RecordError: not an MCAP recording, or its currents and output share fewer than 2 samples.
+    """
+    if Path(recording).suffix != ".mcap":
+        raise RecordError(
+            f"{recording}: --method hammerstein reads a maskless MCAP recording (both valves' "
+            "currents and the head height)"
+        )
+    (current_times, currents), (output_times, output) = read_mcap_signals(
+        recording, VALVE_CURRENTS_FIELDS, output_field
+    )
+    common, current_index, output_index = np.intersect1d(
+        current_times, output_times, return_indices=True
+    )
+    if common.size < 2:
+        raise RecordError(f"{recording}: fewer than 2 samples with both currents and the output")
+    return currents[current_index], output[output_index], float(np.median(np.diff(common))) * 1e-9
+
+
+def identify_hammerstein_to_files(
+    recording: Path,
+    ts: float,
+    orders: list[int],
+    out: str | Path,
+    estimation: str = "0:0.7",
+    validation: str = "0.7:1",
+    output_field: str = DEFAULT_OUTPUT,
+) -> dict:
+    """Fits, judges and writes (see the module docstring); returns the report.
+
+    Raises:
+        RecordError: a recording that cannot be read as two valves and an output, a --ts more
+            than 1 % off its sample period, or parts out of range.
+    """
+    u, y, period_s = read_two_valve_record(recording, output_field)
+    if abs(period_s - ts) > 0.01 * period_s:
+        raise RecordError(f"--ts {ts}: the recording's samples are {period_s:.6g} s apart")
+    estimation_part = parse_range(estimation, y.size, "--estimation")
+    validation_part = parse_range(validation, y.size, "--validation")
+    u_est, y_est = u[estimation_part], y[estimation_part]
+    u_val, y_val = u[validation_part], y[validation_part]
+    out = output_folder(out)
+    report = {"method": "hammerstein", "recording": str(recording), "models": []}
+    figures = []
+    for order in orders:
+        fit = estimate_hammerstein(u_est, y_est, order, ts, input_unit="A", output_unit="m")
+        linear = estimate_hammerstein(u_est, y_est, order, ts, linear=True).model
+        validation_fit = fit_percent(y_val, fit.model.simulate(u_val))
+        linear_fit = fit_percent(y_val, linear.simulate(u_val))
+        margin = validation_fit - linear_fit
+        verdict = (
+            f"the valve maps explain {margin:.1f} points of validation simulation fit more than "
+            "a linear model of the same order"
+            if margin >= _MARGIN_POINTS
+            else f"the valve maps add {margin:.1f} points of validation simulation fit over a "
+            "linear model of the same order: not worth their parameters here"
+        )
+        if not fit.converged:
+            verdict = f"the fit failed ({fit.message}); " + verdict
+        contents = hammerstein_file_contents(fit.model, verdict=verdict)
+        path = out / f"model_hammerstein_order{order}.yaml"
+        model_from_contents(contents, str(path))  # never write a file the loader refuses
+        path.write_text(yaml.safe_dump(contents, sort_keys=False))
+        spread = fit.starting_current_spread()
+        entry = {
+            **fit.summary(VALVE_NAMES),
+            "order": order,
+            "validation_simulation_fit_percent": validation_fit,
+            "linear_validation_simulation_fit_percent": linear_fit,
+            "verdict": verdict,
+            "model_file": str(path),
+        }
+        for index, (name, (low, high)) in enumerate(zip(VALVE_NAMES, spread, strict=False)):
+            valve = entry["valves"][name]
+            valve["starting_current_spread"] = [low, high]
+            # A saturation past the highest current of the record was never seen, only allowed.
+            valve["highest_current_in_record"] = float(np.max(u_est[:, index]))
+        report["models"].append(entry)
+        figures.append((order, fit.model, linear))
+    plot_path = out / "hammerstein.png"
+    _plot(plot_path, figures, u_val, y_val, ts)
+    report["plot"] = str(plot_path)
+    (out / "report.json").write_text(json.dumps(report, indent=1))
+    return report
+
+
+def _plot(path: Path, figures, u_val, y_val, ts: float) -> None:
+    """Each valve's static curve (mm per mA) and the validation part, measured and simulated."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, (curves, compare) = plt.subplots(2, 1, figsize=(8, 7))
+    currents = np.linspace(0.0, float(np.max(u_val)) * 1.05, 300)
+    times = np.arange(y_val.size) * ts
+    compare.plot(times, 1e3 * y_val, color="black", linewidth=0.8, label="measured")
+    for order, model, linear in figures:
+        for index, name in enumerate(VALVE_NAMES[: model.inputs]):
+            curves.plot(
+                1e3 * currents,
+                1e3 * model.static_curve(index, currents),
+                label=f"{name}, order {order}",
+            )
+        compare.plot(times, 1e3 * model.simulate(u_val), label=f"Hammerstein, order {order}")
+        compare.plot(times, 1e3 * linear.simulate(u_val), label=f"linear, order {order}")
+    curves.set_xlabel("valve current (mA)")
+    curves.set_ylabel("steady height change (mm)")
+    curves.set_title("static curves (map x DC gain)")
+    curves.legend()
+    compare.set_xlabel("validation time (s)")
+    compare.set_ylabel("head height (mm)")
+    compare.set_title("validation: simulation from rest at the first currents")
+    compare.legend()
+    figure.tight_layout()
+    figure.savefig(path)
+    plt.close(figure)
+
+
+def format_hammerstein_report(report: dict) -> str:
+    """The report as lines a person reads."""
+    lines = [f"maskless identify --method hammerstein: {report['recording']}"]
+    for model in report["models"]:
+        lines.append(
+            f"  order {model['order']}: validation simulation fit "
+            f"{model['validation_simulation_fit_percent']:.1f} % (linear "
+            f"{model['linear_validation_simulation_fit_percent']:.1f} %): {model['verdict']}"
+        )
+        for name, valve in model["valves"].items():
+            low, high = valve["starting_current_spread"]
+            highest = valve["highest_current_in_record"]
+            saturation = (
+                f"saturates at {1e3 * valve['saturation_current']:.1f} mA"
+                if valve["saturation_current"] <= highest
+                else f"does not saturate up to the record's highest {1e3 * highest:.1f} mA"
+            )
+            lines.append(
+                f"    {name}: starts at {1e3 * valve['starting_current']:.1f} mA "
+                f"(searches as good: {1e3 * low:.1f}-{1e3 * high:.1f} mA), {saturation}, full "
+                f"opening moves the head {1e3 * valve['dc_gain']:.2f} mm"
+            )
+        lines.append(f"    model file: {model['model_file']}")
+    lines.append(f"  plot: {report['plot']}")
+    return "\n".join(lines)

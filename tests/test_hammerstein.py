@@ -1,0 +1,251 @@
+"""Hammerstein identification: exact on a planted system, and realistic on the pneumatic plant.
+
+The planted system (known valve maps, known linear part) is the independent reference for the
+estimator's exactness; the pneumatic plant, whose steady lift per current comes from its own
+physics (``equilibrium_state``), is the realistic test, on a shorter record than
+benchmarks/hammerstein.py measures.
+"""
+
+import numpy as np
+import pytest
+import scipy.optimize
+import scipy.signal
+
+from maskless.analysis.identification.fit_metrics import fit_percent
+from maskless.analysis.identification.hammerstein import (
+    estimate_hammerstein,
+    estimate_linear_arx,
+    polynomial_reflections,
+    reflection_polynomial,
+)
+from maskless.diagrams.scenario import load_scenario
+from maskless.diagrams.valve_level_experiment import (
+    random_level_currents,
+    run_two_valve_experiment,
+)
+from maskless.errors import ModelError
+from maskless.systems.hammerstein_model import HammersteinModel
+from maskless.systems.plant.pneumatic_physics import LIFT
+from maskless.systems.plant.pneumatic_plant import equilibrium_state
+from maskless.systems.plant.valve_map import ValveMap
+
+TS = 0.1
+A_TRUE = np.poly([0.95, 0.8])[1:]
+# Unequal valves with curved maps, so a mix-up of inlet and outlet, or a straight map, shows.
+PLANTED = HammersteinModel(
+    maps=(
+        ValveMap([0.060, 0.090, 0.120, 0.165], [0.0, 0.15, 0.45, 1.0]),
+        ValveMap([0.050, 0.100, 0.150], [0.0, 0.6, 1.0]),
+    ),
+    a=[A_TRUE, A_TRUE],
+    b=[[0.002, 0.001], [-0.0005, -0.0002]],
+    input_delay_samples=1,
+    operating_output=0.2,
+    sample_period_s=TS,
+    input_unit="A",
+    output_unit="m",
+)
+
+
+def _planted_record(samples=3000, noise_m=1e-4, seed=3):
+    currents = random_level_currents(samples, TS, (0.19, 0.19), (0.06, 0.05), (0.5, 4.0), seed)
+    u = currents.T
+    rng = np.random.default_rng(seed)
+    return u, PLANTED.simulate(u) + noise_m * rng.standard_normal(samples)
+
+
+@pytest.fixture(scope="module")
+def planted_fit():
+    u, y = _planted_record()
+    return u, y, estimate_hammerstein(u, y, 2, TS, input_unit="A", output_unit="m")
+
+
+def test_the_planted_maps_poles_and_gains_are_recovered(planted_fit):
+    _, _, fit = planted_fit
+    model = fit.model
+    assert fit.converged, fit.message
+    for estimated, true in zip(model.maps, PLANTED.maps, strict=True):
+        assert estimated.starting_current == pytest.approx(true.starting_current, abs=1.5e-3)
+        assert estimated.saturation_current == pytest.approx(true.saturation_current, abs=1.5e-3)
+    np.testing.assert_allclose(np.sort(model.poles().real), [0.8, 0.95], atol=5e-3)
+    currents = np.linspace(0.0, 0.19, 191)
+    for valve in range(2):
+        truth = PLANTED.static_curve(valve, currents)
+        error = np.max(np.abs(model.static_curve(valve, currents) - truth))
+        assert error < 0.03 * np.max(np.abs(truth))
+    assert model.operating_output == pytest.approx(0.2, abs=1e-3)
+
+
+def test_the_planted_fit_simulates_held_out_data_and_beats_linear_models(planted_fit):
+    u, y, fit = planted_fit
+    assert fit.simulation_fit_percent > 98.5
+    assert fit.simulation_fit_percent >= fit.start_fit_percent
+    u_new, y_new = _planted_record(1500, seed=4)
+    hammerstein = fit_percent(y_new, fit.model.simulate(u_new))
+    output_error = estimate_hammerstein(u, y, 2, TS, linear=True).model
+    arx = estimate_linear_arx(u, y, 4, TS)
+    assert hammerstein > 98.0
+    for linear in (output_error, arx):
+        assert hammerstein > fit_percent(y_new, linear.simulate(u_new)) + 20.0
+
+
+def test_the_same_record_gives_the_same_model_bit_for_bit(planted_fit):
+    u, y, fit = planted_fit
+    again = estimate_hammerstein(u, y, 2, TS, input_unit="A", output_unit="m").model
+    np.testing.assert_array_equal(again.a, fit.model.a)
+    np.testing.assert_array_equal(again.b, fit.model.b)
+    np.testing.assert_array_equal(again.maps[0].currents, fit.model.maps[0].currents)
+
+
+def test_the_summary_reports_each_valve_and_the_poles(planted_fit):
+    summary = planted_fit[2].summary()
+    assert set(summary["valves"]) == {"inlet", "outlet"}
+    inlet = summary["valves"]["inlet"]
+    assert inlet["starting_current"] == pytest.approx(0.060, abs=1.5e-3)
+    assert inlet["curve_outputs"][-1] == pytest.approx(inlet["dc_gain"])
+    assert len(summary["poles"]) == 2
+    # A planted map with kinks pins its start: every search about as good finds it.
+    for (low, high), true in zip(
+        planted_fit[2].starting_current_spread(), PLANTED.maps, strict=True
+    ):
+        assert true.starting_current - 1.5e-3 < low <= high < true.starting_current + 1.5e-3
+
+
+def test_a_search_stopped_early_is_named_not_raised():
+    u, y = _planted_record(1000)
+    fit = estimate_hammerstein(u, y, 2, TS, max_evaluations=3)
+    assert not fit.converged
+    assert fit.message.startswith(("not converged", "search failed"))
+    assert np.isfinite(fit.simulation_fit_percent)
+
+
+def test_a_search_that_raises_returns_its_start_named_as_failed(monkeypatch):
+    def raising(*args, **kwargs):
+        raise ValueError("Residuals are not finite in the initial point.")
+
+    monkeypatch.setattr(scipy.optimize, "least_squares", raising)
+    u, y = _planted_record(1000)
+    fit = estimate_hammerstein(u, y, 2, TS)
+    assert not fit.converged and fit.searches == ()
+    assert fit.message == "search failed: Residuals are not finite in the initial point."
+    assert fit.simulation_fit_percent == fit.start_fit_percent
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"u": np.zeros((500, 2))}, "u column 0 is constant"),
+        ({"y": np.full(1000, 0.2)}, "y is constant"),
+        ({"y": np.zeros(999)}, r"u must be \(N, inputs\) and y \(N,\) of one length"),
+        ({"order": 0}, "order = 0: expected an integer >= 1"),
+        ({"map_segments": 2.5}, "map_segments = 2.5"),
+        ({"input_delay_samples": 0}, "input_delay_samples = 0"),
+        ({"u": np.full((1000, 2), np.nan)}, "u and y must be finite"),
+        ({"sample_period_s": -0.1}, "sample_period_s = -0.1"),
+    ],
+)
+def test_bad_arguments_are_one_line_naming_the_argument(change, message):
+    u, y = _planted_record(1000)
+    arguments = {"u": u, "y": y, "order": 2, "sample_period_s": TS, **change}
+    if "u" in change and arguments["u"].shape[0] != y.size:
+        arguments["y"] = y[: arguments["u"].shape[0]]
+    with pytest.raises(ValueError, match=message):
+        estimate_hammerstein(**arguments)
+
+
+def test_reflection_coefficients_inside_one_give_a_stable_polynomial_and_back():
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        reflections = rng.uniform(-0.999, 0.999, size=4)
+        a = reflection_polynomial(reflections)
+        assert np.all(np.abs(np.roots(np.concatenate([[1.0], a]))) < 1.0)
+        np.testing.assert_allclose(polynomial_reflections(a), reflections, atol=1e-8)
+    # A second-order polynomial's last reflection coefficient is its last coefficient.
+    assert reflection_polynomial([0.3, 0.5])[-1] == pytest.approx(0.5)
+
+
+def test_the_model_simulates_as_its_state_space_and_settles_at_its_static_curve():
+    u, _ = _planted_record(400)
+    A, B, C = PLANTED.state_space()
+    openings = PLANTED.openings(u)
+    steady = np.linalg.solve(np.eye(A.shape[0]) - A, B @ openings[0])
+    x, expected = steady, []
+    for opening in openings:
+        expected.append(PLANTED.operating_output + (C @ x)[0])
+        x = A @ x + B @ opening
+    np.testing.assert_allclose(PLANTED.simulate(u), expected, atol=1e-12)
+    # The DC gain against scipy's own transfer function at z = 1.
+    numerator, denominator = PLANTED.numerators()[0], np.concatenate([[1.0], PLANTED.a[0]])
+    _, response = scipy.signal.freqz(numerator, denominator, worN=[0.0])
+    assert PLANTED.dc_gains()[0] == pytest.approx(response[0].real)
+
+
+def test_a_valve_linear_model_has_unit_dc_gain_and_the_valves_poles():
+    model = PLANTED.valve_linear_model(1)
+    assert model.dc_gain() == pytest.approx(1.0)
+    np.testing.assert_allclose(np.sort(model.poles().real), [0.8, 0.95])
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"a": [[0.1], [0.1]]}, r"b must have shape \(2, 1\)"),
+        ({"a": [0.1, 0.2]}, r"a must have shape \(2, n >= 1\)"),
+        ({"b": [[np.inf, 0.0], [0.0, 0.0]]}, "a and b must be finite"),
+        ({"input_delay_samples": 0}, "input_delay_samples = 0"),
+        ({"sample_period_s": 0.0}, "sample_period_s = 0.0: expected > 0"),
+        ({"maps": ()}, "maps must be one or more ValveMap"),
+    ],
+)
+def test_a_bad_model_is_refused_naming_the_field(change, message):
+    fields = {
+        "maps": PLANTED.maps,
+        "a": PLANTED.a,
+        "b": PLANTED.b,
+        "input_delay_samples": 1,
+        "operating_output": 0.2,
+        "sample_period_s": TS,
+        **change,
+    }
+    with pytest.raises(ModelError, match=message):
+        HammersteinModel(**fields)
+
+
+# --- the pneumatic plant ---------------------------------------------------------------------
+
+# The record of benchmarks/hammerstein.py (its defaults: an hour, levels held 5-60 s, seed 0),
+# where it measured (currents in mA): a static-curve error of 12.5 % of full scale for the inlet,
+# 38.6 points of held-out simulation fit over the best linear model, and searches within 1 % of
+# the best cost ending with the inlet's starting current anywhere in 43.9-65.1 mA (the lift grows
+# with the square of the opening, so the curve leaves zero too gently to pin its start; the best
+# of them, 43.9 mA, is reported). The bounds leave room for another machine's arithmetic picking
+# another of those searches. An hour is the shortest record that puts some twenty levels above
+# the start.
+PNEUMATIC_DURATION_S = 3600.0
+
+
+@pytest.fixture(scope="module")
+def pneumatic_record():
+    config = load_scenario()
+    period_s = config.offset_free_lqg.sample_period_s
+    samples = round(PNEUMATIC_DURATION_S / period_s)
+    currents = random_level_currents(samples, period_s, (0.19, 0.19), (0.06, 0.06), (5, 60), 0)
+    applied, height_m, _ = run_two_valve_experiment(config, currents, period_s)
+    return config, period_s, applied.T, height_m
+
+
+def test_on_the_pneumatic_plant_the_inlet_curve_and_start_are_found(pneumatic_record):
+    config, period_s, u, y = pneumatic_record
+    split = round(0.7 * y.size)
+    fit = estimate_hammerstein(u[:split], y[:split], 2, period_s)
+    model = fit.model
+    p = config.pneumatic
+    # The searches that fit about as well disagree here, so the bound is their spread's.
+    assert abs(model.maps[0].starting_current - p.inlet.starting_current_a) < 0.020
+    working = np.linspace(p.inlet.starting_current_a, p.inlet.saturation_current_a, 50)
+    truth = [equilibrium_state(p, i, 0.0)[LIFT] for i in working]
+    error = np.max(np.abs(model.static_curve(0, working) - truth))
+    assert error < 0.15 * np.max(truth)
+    hammerstein = fit_percent(y[split:], model.simulate(u[split:]))
+    linear = estimate_hammerstein(u[:split], y[:split], 2, period_s, linear=True).model
+    assert hammerstein > fit_percent(y[split:], linear.simulate(u[split:])) + 25.0

@@ -1,0 +1,47 @@
+"""`maskless excite` on both valves, then `maskless identify --method hammerstein` on the run."""
+
+import json
+
+import numpy as np
+import pytest
+
+from maskless.analysis.identification.model_file import load_identified_model
+from maskless.diagrams.cli import main
+from maskless.systems.hammerstein_model import HammersteinModel
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    out = tmp_path_factory.mktemp("excite")
+    argv = ["excite", "--signal", "multilevel", "--valve-drive", "independent"]
+    assert main([*argv, "--duration", "600", "--hold", "2:20", "--out", str(out)]) == 0
+    return out / "run.mcap"
+
+
+def test_identify_hammerstein_writes_a_model_the_plants_load_and_a_report(
+    recording, tmp_path, capsys
+):
+    capsys.readouterr()
+    out = tmp_path / "id"
+    argv = ["identify", "--input", str(recording), "--ts", "0.0666667", "--method", "hammerstein"]
+    assert main([*argv, "--out", str(out), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    (entry,) = report["models"]
+    assert entry["order"] == 2 and set(entry["valves"]) == {"inlet", "outlet"}
+    # The inlet lifts the head and the outlet lowers it, as the plant's physics has them.
+    assert entry["valves"]["inlet"]["dc_gain"] > 0 > entry["valves"]["outlet"]["dc_gain"]
+    low, high = entry["valves"]["inlet"]["starting_current_spread"]
+    assert low <= entry["valves"]["inlet"]["starting_current"] <= high
+    model = load_identified_model(entry["model_file"])
+    assert isinstance(model, HammersteinModel) and model.is_stable()
+    assert (out / "hammerstein.png").stat().st_size > 0
+    assert np.isfinite(entry["validation_simulation_fit_percent"])
+
+
+def test_identify_hammerstein_refuses_a_csv_in_one_line(tmp_path, capsys):
+    path = tmp_path / "u.csv"
+    path.write_text("1\n2\n3\n")
+    argv = ["identify", "--input", str(path), "--ts", "0.1", "--method", "hammerstein"]
+    assert main([*argv, "--out", str(tmp_path / "id")]) != 0
+    error = capsys.readouterr().err.strip()
+    assert "reads a maskless MCAP recording" in error and "\n" not in error

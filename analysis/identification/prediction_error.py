@@ -263,7 +263,8 @@ def parameter_count(
     return order * (1 + inputs * with_input + with_noise_model + estimated_initial_state)
 
 
-def _check_record(u, y, order):
+def check_order_and_shapes(u, y, order) -> None:
+    """Raises ValueError unless order is a positive integer, y 1-D and u has one row per y."""
     if not isinstance(order, int | np.integer) or order < 1:
         raise ValueError(f"order = {order!r}: expected a positive integer")
     if y.ndim != 1 or u.ndim not in (1, 2) or u.shape[0] != y.size or 0 in u.shape[1:]:
@@ -271,5 +272,9 @@ def _check_record(u, y, order):
             f"u and y must be of one length, y 1-D and u 1-D or one column per input, got "
             f"{u.shape} and {y.shape}"
         )
+
+
+def _check_record(u, y, order):
+    check_order_and_shapes(u, y, order)
     if y.size < 10 * order:
         raise ValueError(f"{y.size} samples are too few for an order-{order} model")

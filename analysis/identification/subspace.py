@@ -38,7 +38,10 @@ from maskless.analysis.identification.innovations_model import (
     impulse_response,
     samples_before_growth,
 )
-from maskless.analysis.identification.prediction_error import estimate_noise_model
+from maskless.analysis.identification.prediction_error import (
+    check_order_and_shapes,
+    estimate_noise_model,
+)
 
 # The longest past horizon the criterion considers: it bounds the Gram matrix at 2 (30 + f) rows.
 LONGEST_PAST_HORIZON = 30
@@ -96,13 +99,7 @@ def estimate_n4sid(
         estimate_initial_state: estimate x(0) too; otherwise x(0) = 0.
         progress: called as progress(evaluations, cost) during the noise model's search.
     """
-    if not isinstance(order, int | np.integer) or order < 1:
-        raise ValueError(f"order = {order!r}: expected a positive integer")
-    if y.ndim != 1 or u.ndim not in (1, 2) or u.shape[0] != y.size or 0 in u.shape[1:]:
-        raise ValueError(
-            f"u and y must be of one length, y 1-D and u 1-D or one column per input, got "
-            f"{u.shape} and {y.shape}"
-        )
+    check_order_and_shapes(u, y, order)
     m = 1 if u.ndim == 1 else u.shape[1]
     f = future_horizon_for(order) if future_horizon is None else future_horizon
     if f <= order or (past_horizon is not None and past_horizon <= order):

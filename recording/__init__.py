@@ -101,31 +101,10 @@ _EXPORTS = {
     "is_sensor_name": "maskless.sensor_names",
 }
 
-# The module's __all__ from before it became a package. The batch writer, its writer class and
-# the sensor-name check (imported from here by diagrams.scenario) are public too, but outside
-# __all__ as they were.
-__all__ = [
-    "BLADDER_PRESSURE_TOPIC",
-    "CAMERA_MESSAGE_ENCODING",
-    "COMMAND_TOPIC",
-    "FUSION_TOPIC",
-    "HEAD_HEIGHT_TOPIC",
-    "MESSAGE_ENCODING",
-    "REFERENCE_TOPIC",
-    "SAFETY_TOPIC",
-    "SCHEMA_ENCODING",
-    "SCHEMA_VERSION",
-    "Channel",
-    "Recording",
-    "TruncatedRecordingWarning",
-    "current_name",
-    "filter_estimate_topic",
-    "read_camera_frames",
-    "read_recording",
-    "schema_for_topic",
-    "sensor_measurement_topic",
-    "write_recording",
-]
+# The module's __all__ from before it became a package: every export but the batch writer, its
+# writer class and the sensor-name check (imported from here by diagrams.scenario), public too but
+# outside __all__ as they were.
+__all__ = sorted(set(_EXPORTS) - {"RecordingWriter", "write_recording_batches", "is_sensor_name"})
 
 
 __getattr__, __dir__ = lazy_exports(globals(), _EXPORTS)

@@ -358,8 +358,14 @@ def export_and_log(
             exported[f"{name}_filter.{port}"] = sensing.filters[name].outputs[port]
     for port_name, port in exported.items():
         builder.ExportOutput(port, port_name)
+    loggers = _add_loggers(builder, _logged(config, sensing, exported, command_period_s, record))
+    remove_plumbing(builder, kept=exported.values())
+    return loggers
+
+
+def _logged(config, sensing, exported: dict, command_period_s: float, record) -> dict:
+    """The exported outputs ``record`` asks to log, each with its logging period (none if False)."""
     if not record:
-        remove_plumbing(builder, kept=exported.values())
         return {}
     frame_periods_s = {
         f"{name}.{port}": 1.0 / config.cameras[name].frame_rate_hz
@@ -370,14 +376,11 @@ def export_and_log(
         unknown = sorted(set(record) - set(exported))
         if unknown:
             raise ConfigError(f"no outputs {unknown} to log; the loop exports {sorted(exported)}")
-    logged = {
+    return {
         signal: (port, frame_periods_s.get(signal, command_period_s))
         for signal, port in exported.items()
         if record is True or signal in record
     }
-    loggers = _add_loggers(builder, logged)
-    remove_plumbing(builder, kept=exported.values())
-    return loggers
 
 
 def build_closed_loop(

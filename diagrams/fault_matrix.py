@@ -27,7 +27,6 @@ from maskless.analysis.fault_matrix_summary import CaseFaults, summarize_fault_m
 from maskless.analysis.trial_table import write_trial_table
 from maskless.diagrams.output_folder import RunFolder
 from maskless.diagrams.process_pool import pool_results
-from maskless.diagrams.run_summary import safety_log
 from maskless.diagrams.scenario import (
     Scenario,
     load_scenario,
@@ -36,6 +35,7 @@ from maskless.diagrams.scenario import (
 )
 from maskless.diagrams.simulation import simulate
 from maskless.errors import ConfigError
+from maskless.systems.units import m_to_mm
 
 NOMINAL = "nominal"
 FILES = ("faults.csv", "faults.json", "faults.png")
@@ -173,7 +173,7 @@ def fault_matrix_row(scenario: Scenario, cases: dict[str, dict], job: tuple[str,
 def _judged(run, scenario: Scenario, start_s: float | None) -> dict:
     """A run's figures for its row: detection, safe state, excursion, p95, beam, valves."""
     metrics, s = run.metrics, run.signals
-    safety, log = metrics["safety"], safety_log(s)
+    safety = metrics["safety"]
     figures = {key: safety[key] for key in COLUMNS if key in safety}
     figures["p95_abs_error_mm"] = metrics["tracking"]["p95_abs_error_mm"]
     figures["max_gauge_pressure_kpa"] = safety.get("max_gauge_pressure_kpa")
@@ -192,13 +192,13 @@ def _judged(run, scenario: Scenario, start_s: float | None) -> dict:
     times, head = s["head_height_m"].times_s, s["head_height_m"].values[0]
     if start_s is not None and start_s <= times[-1]:
         k = int(np.searchsorted(times, start_s))
-        figures["worst_excursion_mm"] = 1e3 * float(np.max(np.abs(head[k:] - head[k])))
+        figures["worst_excursion_mm"] = m_to_mm(float(np.max(np.abs(head[k:] - head[k]))))
     p = scenario.pneumatic
     figures["valve_currents_out_of_range"] = sum(
         int(np.count_nonzero(~(np.isfinite(current) & (current >= 0) & (current <= full))))
         for current, full in (
-            (log.inlet_a, p.inlet.saturation_current_a),
-            (log.outlet_a, p.outlet.saturation_current_a),
+            (s["safety.inlet_valve_current_a"].values[0], p.inlet.saturation_current_a),
+            (s["safety.outlet_valve_current_a"].values[0], p.outlet.saturation_current_a),
         )
     )
     return figures

@@ -34,7 +34,7 @@ def remove_plumbing(builder: DiagramBuilder, kept: Collection[OutputPort] = ()) 
     for mux in [s for s in systems.values() if isinstance(s, Multiplexer)]:
         _gather_whole_vectors(builder, systems, mux, kept_sources)
     connections = _sources_by_input(builder)
-    read = {source for source in connections.values()}
+    read = set(connections.values())
     for demux in [s for s in builder.GetSystems() if isinstance(s, Demultiplexer)]:
         name = demux.get_name()
         outputs = {(name, index) for index in range(demux.num_output_ports())}

@@ -87,8 +87,9 @@ def identify_hammerstein_to_files(
     for order in orders:
         fit = estimate_hammerstein(u_est, y_est, order, ts, input_unit="A", output_unit="m")
         linear = estimate_hammerstein(u_est, y_est, order, ts, linear=True).model
-        validation_fit = fit_percent(y_val, fit.model.simulate(u_val))
-        linear_fit = fit_percent(y_val, linear.simulate(u_val))
+        simulated, linear_simulated = fit.model.simulate(u_val), linear.simulate(u_val)
+        validation_fit = fit_percent(y_val, simulated)
+        linear_fit = fit_percent(y_val, linear_simulated)
         margin = validation_fit - linear_fit
         verdict = (
             f"the valve maps explain {margin:.1f} points of validation simulation fit more than "
@@ -118,7 +119,7 @@ def identify_hammerstein_to_files(
             # A saturation past the highest current of the record was never seen, only allowed.
             valve["highest_current_in_record"] = float(np.max(u_est[:, index]))
         report["models"].append(entry)
-        figures.append((order, fit.model, linear))
+        figures.append((order, fit.model, simulated, linear_simulated))
     plot_path = out / "hammerstein.png"
     _plot(plot_path, figures, u_val, y_val, ts)
     report["plot"] = str(plot_path)
@@ -137,15 +138,15 @@ def _plot(path: Path, figures, u_val, y_val, ts: float) -> None:
     currents = np.linspace(0.0, float(np.max(u_val)) * 1.05, 300)
     times = np.arange(y_val.size) * ts
     compare.plot(times, 1e3 * y_val, color="black", linewidth=0.8, label="measured")
-    for order, model, linear in figures:
+    for order, model, simulated, linear_simulated in figures:
         for index, name in enumerate(VALVE_NAMES[: model.inputs]):
             curves.plot(
                 1e3 * currents,
                 1e3 * model.static_curve(index, currents),
                 label=f"{name}, order {order}",
             )
-        compare.plot(times, 1e3 * model.simulate(u_val), label=f"Hammerstein, order {order}")
-        compare.plot(times, 1e3 * linear.simulate(u_val), label=f"linear, order {order}")
+        compare.plot(times, 1e3 * simulated, label=f"Hammerstein, order {order}")
+        compare.plot(times, 1e3 * linear_simulated, label=f"linear, order {order}")
     curves.set_xlabel("valve current (mA)")
     curves.set_ylabel("steady height change (mm)")
     curves.set_title("static curves (map x DC gain)")

@@ -10,12 +10,6 @@ from maskless.systems.units import a_to_ma, m_to_mm
 _MAX_POINTS = 4000
 
 
-def prepare_plotting() -> None:
-    """Imports what rendering needs (a third of a second), so a worker can do it ahead of time."""
-    import matplotlib.backends.backend_agg  # noqa: F401
-    from matplotlib.figure import Figure  # noqa: F401
-
-
 def _thin(times, values):
     """At most ``_MAX_POINTS`` samples, evenly spread, the first and the last kept."""
     if len(times) <= _MAX_POINTS:

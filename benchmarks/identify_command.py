@@ -1,11 +1,12 @@
 """Start-up and whole-command time of `maskless identify`, as a user runs it; one JSON line.
 
 - Import: a fresh interpreter importing the command's module (``maskless.diagrams.commands.
-  identify``, what `maskless identify` loads before it reads a byte), timed inside that process.
+  identify``, what the CLI loads to parse the flags, before it forks the plotting worker and then
+  imports the estimators), timed inside that process.
 - Command: the wall time of the whole `maskless identify` process (interpreter, imports, reading
-  the CSV record, the order-2 PEM fit, the report, the model file and both plots) on a generated
-  20,000-sample CSV record (target <= 1 s, issue 14), and its CPU time (user + system, with the
-  plotting child's).
+  the CSV record, the order-2 PEM fit, the report, the model file and the three plots) on a
+  generated 20,000-sample CSV record (target <= 1 s, issue 14), and its CPU time (user + system,
+  with the plotting child's).
 
 Each figure is the median of ``--repeats`` fresh processes, after one run that is not counted (it
 warms the disk cache). The record is tests/identification_records.py's order-2 system with

@@ -1,11 +1,10 @@
 """Work in forked child processes while the caller goes on, to use a second core.
 
-- ``BackgroundTask`` forks once the work's inputs exist, so the child shares them without copying
-  or pickling (`maskless identify` renders its plots this way).
-- ``Worker`` forks early and serves what the caller sends it later (picklable objects, through a
-  pipe): `maskless simulate` streams the recording to one while the loop runs, and has another
-  import matplotlib meanwhile (~0.35 s) and then plot. Child processes, not threads: a thread's
-  work would hold the GIL the simulation needs.
+A ``Worker`` forks early and serves what the caller sends it later (picklable objects, through a
+pipe): `maskless simulate` streams the recording to one while the loop runs, and has another
+import matplotlib meanwhile (~0.35 s) and then plot; `maskless identify` has one import
+matplotlib while it imports the estimators. Child processes, not threads: a thread's work would
+hold the GIL the simulation needs.
 
 A worker never outlives its caller. Its ``connection.recv()`` raises EOFError once the caller is
 gone (killed, even by SIGKILL: the worker polls for its parent while it waits), once the caller
@@ -14,7 +13,7 @@ that has something to finish (a recording's footer) catches it, the others just 
 ignore SIGINT: a terminal's Ctrl-C reaches the whole process group, and the caller decides.
 
 Where fork is not the platform's safe default (macOS and Windows), the work simply runs in the
-caller: a task at once, a worker's serve function when the caller waits for it or stops it.
+caller: a worker's serve function when the caller waits for it or stops it.
 """
 
 import multiprocessing
@@ -42,13 +41,13 @@ def _request_stop(signum, frame) -> None:
     _stop_requested = True
 
 
-def _in_child(is_worker: bool, target: Callable, *args) -> None:
+def _in_child(target: Callable, *args) -> None:
     """Runs ``target(*args)`` in a forked child, set up as the module docstring says."""
     for sender in list(_SENDERS):
         sender.close()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    # Not the handler a CLI parent may have set (it raises there): a task just ends.
-    signal.signal(signal.SIGTERM, _request_stop if is_worker else signal.SIG_DFL)
+    # Not the handler a CLI parent may have set (it raises there).
+    signal.signal(signal.SIGTERM, _request_stop)
     try:
         target(*args)
     except EOFError:  # its caller is gone or stopped it: nothing to report
@@ -58,10 +57,10 @@ def _in_child(is_worker: bool, target: Callable, *args) -> None:
 class _Child:
     """A forked child process; ``wait`` joins it and reports a failure."""
 
-    def __init__(self, description: str, is_worker: bool, target: Callable, *args):
+    def __init__(self, description: str, target: Callable, *args):
         self._description = description
         self._process = multiprocessing.get_context("fork").Process(
-            target=_in_child, args=(is_worker, target, *args), daemon=True
+            target=_in_child, args=(target, *args), daemon=True
         )
         self._process.start()
 
@@ -81,27 +80,6 @@ class _Child:
     def join(self) -> None:
         """Blocks until the child ends, whatever its exit code."""
         self._process.join()
-
-
-class BackgroundTask:
-    """``function(*args)`` running in a forked child from now on."""
-
-    def __init__(self, description: str, function: Callable, *args):
-        """Forks the child running ``function(*args)``, or runs it here where fork is unsafe.
-
-        Args:
-            description: what the task does, as a failure's message names it.
-            function: the work.
-            *args: its arguments.
-        """
-        self._child = _Child(description, False, function, *args) if _FORK_IS_SAFE else None
-        if self._child is None:
-            function(*args)
-
-    def wait(self) -> None:
-        """Blocks until the task ends; raises RuntimeError if it failed."""
-        if self._child is not None:
-            self._child.wait()
 
 
 class _Stop:
@@ -166,7 +144,7 @@ class Worker:
             receiver, self._sender = multiprocessing.get_context("fork").Pipe(duplex=False)
             _SENDERS.add(self._sender)
             parent = _FromParent(receiver, os.getpid())
-            self._child = _Child(description, True, serve, parent, *args)
+            self._child = _Child(description, serve, parent, *args)
             receiver.close()
 
     def send(self, message) -> None:

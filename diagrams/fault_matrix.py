@@ -217,20 +217,16 @@ def format_fault_matrix(summary: dict) -> str:
         header,
     ]
 
-    def pair(figure, scale=1.0, digits=2):
-        if figure["median"] is None:
-            return "-"
-        return f"{scale * figure['median']:.{digits}f}/{scale * figure['worst']:.{digits}f}"
-
     for case, f in summary["cases"].items():
         beam_on = f["beam_on_while_off_target_fraction"]
         held = f["beam_held_while_on_target_fraction"]
         excursion = "-" if f["worst_excursion_mm"] is None else f"{f['worst_excursion_mm']:.2f}"
         lines.append(
             f"{case:<22} {f['runs']:>4} {f['errors']:>3} {f['detected']:>4}/{f['runs']:<4} "
-            f"{pair(f['detection_latency_s']):>10} {pair(f['safe_state_latency_s']):>7} "
-            f"{excursion:>9} {pair(f['p95_abs_error_mm']):>7} "
-            f"{_worst_median(beam_on, 100, 3):>13} {_worst_median(held, 100, 1):>13}"
+            f"{_two_of(f['detection_latency_s']):>10} {_two_of(f['safe_state_latency_s']):>7} "
+            f"{excursion:>9} {_two_of(f['p95_abs_error_mm']):>7} "
+            f"{_two_of(beam_on, ('worst', 'median'), 100, 3):>13} "
+            f"{_two_of(held, ('worst', 'median'), 100, 1):>13}"
         )
     lines += ["", "Targets (issue 13):"]
     for t in summary["targets"]:
@@ -244,7 +240,11 @@ def format_fault_matrix(summary: dict) -> str:
     return "\n".join(lines)
 
 
-def _worst_median(figure: dict, scale: float, digits: int) -> str:
-    if figure["worst"] is None:
+def _two_of(
+    figure: dict, keys: tuple[str, str] = ("median", "worst"), scale: float = 1.0, digits: int = 2
+) -> str:
+    """Two of a case's figures ("median", "worst") as "A/B", scaled; "-" where there are none."""
+    first, second = (figure[key] for key in keys)
+    if first is None:
         return "-"
-    return f"{scale * figure['worst']:.{digits}f}/{scale * figure['median']:.{digits}f}"
+    return f"{scale * first:.{digits}f}/{scale * second:.{digits}f}"

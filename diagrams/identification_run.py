@@ -33,6 +33,7 @@ from maskless.analysis.identification.model_file import (
     model_file_contents,
     model_from_contents,
 )
+from maskless.analysis.identification.part_curves import part_curves
 from maskless.analysis.identification.records import (
     Detrended,
     detrend,
@@ -40,20 +41,19 @@ from maskless.analysis.identification.records import (
     read_csv_signal,
     read_mcap_signals,
 )
-from maskless.analysis.identification.report import METHODS, FittedModel, Part
+from maskless.analysis.identification.report import FittedModel, Part
 from maskless.analysis.identification.subspace import minimum_samples as subspace_minimum
-from maskless.diagrams.background import BackgroundTask
+from maskless.diagrams.background import Worker
+from maskless.diagrams.identification_request import (
+    DEFAULT_MCAP_INPUT,
+    DEFAULT_MCAP_OUTPUT,
+    IdentificationRequest,
+)
 from maskless.diagrams.output_folder import output_folder
-from maskless.diagrams.request_labels import LabelledRequest
+from maskless.diagrams.plot_worker import start_plot_worker
 from maskless.errors import ConfigError, ModelError, RecordError
-from maskless.recording import COMMAND_TOPIC, FUSION_TOPIC
-from maskless.systems.limits import SAMPLE_PERIOD_S
 from maskless.systems.linear_model import LinearModel
 
-# What a maskless recording's input and output are, unless the request says otherwise.
-DEFAULT_MCAP_INPUT = f"{COMMAND_TOPIC}:inlet_valve_current_a"
-DEFAULT_MCAP_OUTPUT = f"{FUSION_TOPIC}:head_height_m"
-DETREND_MODES = ("mean", "linear", "none")
 # Records at least this long report the optimiser's progress on stderr.
 _PROGRESS_MIN_SAMPLES = 50_000
 # A maskless recording's field names end in their SI unit (longest suffix first: "_m_s" is m/s).
@@ -68,94 +68,8 @@ UNIT_GIVEN, UNIT_FROM_FIELD, UNIT_CSV_DEFAULT, UNIT_NOT_GIVEN = (
     "assumed: a CSV carries no units; the robot's CSV convention",
     "not given",
 )
-# A unit string is shown as given, on one line of a report or a plot's label.
-_UNIT_MAX_CHARS = 32
 # How far --ts may be from a recording's own sample period before it is refused.
 _TS_TOLERANCE = 0.01
-
-
-@dataclass(frozen=True)
-class IdentificationRequest(LabelledRequest):
-    """What to identify, from which record; checked when made.
-
-    Attributes:
-        input: the input record: a CSV file (one value per line, or a column) or a maskless MCAP
-            recording; None when the signals are given as arrays (``identify``).
-        output: the output record; None when ``input`` is an MCAP recording holding both.
-        ts: the sample period (s).
-        orders: the model orders to fit.
-        method: "pem", "armax", "arx" or "n4sid".
-        input_column: CSV column (name or index) or MCAP ``TOPIC:FIELD``; None for the default.
-            Several inputs (the inlet and the outlet valve) as "COLUMN,COLUMN" or
-            "TOPIC:FIELD,FIELD" (``records.VALVE_CURRENTS_FIELDS``): an m-input model.
-        output_column: likewise for the output.
-        estimation: the part the models are fitted on: fractions ("0:0.6") or sample indices.
-        validation: the part they are judged on.
-        detrend: remove the whole record's "mean" (the authors' preprocessing), its "linear"
-            trend, or "none".
-        k_step: also report the K-step-ahead prediction fit; None for none.
-        estimate_initial_state: estimate x(0) with the model (else fix it at zero).
-        input_unit: the input's unit, any string (e.g. "mA", "degC", "V"), shown as given; None
-            for mA (CSV, assumed) or the MCAP field's unit. Only m, mm, A and mA convert to
-            the SI a design loads (``MODEL_FILE_UNITS``). With several inputs, one unit for all
-            or "UNIT,UNIT" one each.
-        output_unit: likewise for the output (None: mm for CSV, assumed).
-        labels: see ``LabelledRequest``.
-    """
-
-    input: Path | None
-    ts: float
-    output: Path | None = None
-    orders: tuple[int, ...] = (2,)
-    method: str = "pem"
-    input_column: str | None = None
-    output_column: str | None = None
-    estimation: str = "0:0.6"
-    validation: str = "0.6:1"
-    detrend: str = "mean"
-    k_step: int | None = None
-    estimate_initial_state: bool = True
-    input_unit: str | None = None
-    output_unit: str | None = None
-
-    def __post_init__(self):
-        """Makes the files Paths and the orders a tuple; RecordError for a field out of range."""
-        if self.input is not None:
-            object.__setattr__(self, "input", Path(self.input))
-        if self.output is not None:
-            object.__setattr__(self, "output", Path(self.output))
-        object.__setattr__(self, "orders", tuple(self.orders))
-        label = self.label
-        SAMPLE_PERIOD_S.check(self.ts, label("ts"))
-        if not self.orders or any(
-            not isinstance(order, int) or isinstance(order, bool) or order < 1
-            for order in self.orders
-        ):
-            raise ConfigError(
-                f"{label('orders')} {self.orders}: expected positive integers, e.g. 2,4"
-            )
-        if self.method not in METHODS:
-            raise ConfigError(
-                f"{label('method')} {self.method!r}: expected one of {', '.join(METHODS)}"
-            )
-        if self.detrend not in DETREND_MODES:
-            raise ConfigError(
-                f"{label('detrend')} {self.detrend!r}: expected {', '.join(DETREND_MODES)}"
-            )
-        for name in ("input_unit", "output_unit"):
-            unit = getattr(self, name)
-            if unit is not None and (
-                not isinstance(unit, str)
-                or not unit.strip()
-                or not unit.isprintable()
-                or len(unit) > _UNIT_MAX_CHARS
-            ):
-                raise ConfigError(
-                    f"{label(name)} {unit!r}: expected a unit, printable text of 1 to "
-                    f"{_UNIT_MAX_CHARS} characters (e.g. mA, mm, degC)"
-                )
-        if self.k_step is not None and self.k_step < 1:
-            raise ConfigError(f"{label('k_step')} {self.k_step}: expected a positive integer")
 
 
 @dataclass
@@ -530,19 +444,52 @@ def _detrend(u: np.ndarray, y: np.ndarray, mode: str) -> Detrended:
     )
 
 
-def identify_to_files(request: IdentificationRequest, out: str | Path) -> dict:
+def identify_to_files(
+    request: IdentificationRequest, out: str | Path, plotter: Worker | None = None
+) -> dict:
     """``identify_record`` then ``write_identification`` (``maskless identify``)."""
-    return write_identification(identify_record(request), out)
+    return write_identification(identify_record(request), out, plotter)
 
 
-def write_identification(identified: "IdentificationRun", out: str | Path) -> dict:
+def plot_calls(identified: "IdentificationRun", out: Path) -> list[tuple]:
+    """The record, compare and residual plots of ``identified`` as ``serve_calls`` calls."""
+    fitted_models, report, units = identified.fitted_models, identified.report, identified.units
+    ts, parts = identified.request.ts, identified.parts
+    calls = []
+    if identified.signals is not None and isinstance(units[0], str):
+        u, y = identified.signals
+        record = report["diagnostics"]["record"]
+        calls.append((plot_record, (out / "record.png", u, y, ts, units, record), {}))
+    elif identified.signals is not None:  # a record plot per input
+        u, y = identified.signals
+        for index, name in enumerate(identified.input_names):
+            record = report["diagnostics"]["inputs"][name]["record"]
+            path = out / f"record_input{index + 1}.png"
+            calls.append(
+                (plot_record, (path, u[:, index], y, ts, (units[0][index], units[1]), record), {})
+            )
+    for fitted in fitted_models:
+        stem = f"{fitted.method}_order{fitted.order}"
+        curves = [part_curves(fitted, part, parts[0]) for part in parts]
+        stability = "" if fitted.linear_models[0].is_stable() else ", UNSTABLE"
+        name = f"{fitted.method} order {fitted.order}{stability}"
+        compare = out / f"compare_{stem}.png"
+        calls.append((plot_compare, (compare, curves, name, ts, units[1]), {}))
+        calls.append((plot_residuals, (out / f"residuals_{stem}.png", curves, name), {}))
+    return calls
+
+
+def write_identification(
+    identified: "IdentificationRun", out: str | Path, plotter: Worker | None = None
+) -> dict:
     """Writes OUT/report.json, one model file per order, and the record, compare, residual plots.
 
-    The record plot is record.png; the others are one per model. The plots are drawn on the
-    second core meanwhile. Returns the report with each model's file named.
+    The record plot is record.png; the others are one per model. ``plotter`` draws them on the
+    second core meanwhile (``start_plot_worker``: the command starts it before it imports the
+    estimators; one is started here if None); this waits for it, or stops it if writing fails.
+    Returns the report with each model's file named.
     """
-    fitted_models, parts, report = identified.fitted_models, identified.parts, identified.report
-    offsets, units, request = identified.offsets, identified.units, identified.request
+    fitted_models, report, units = identified.fitted_models, identified.report, identified.units
     out = output_folder(out)
     several = not isinstance(units[0], str)
     named_units = (
@@ -562,37 +509,31 @@ def write_identification(identified: "IdentificationRun", out: str | Path) -> di
             "and plants, which work in SI, refuse them"
         )
 
-    def plots():
-        if identified.signals is not None and not several:
-            plot_record(
-                out / "record.png",
-                *identified.signals,
-                request.ts,
-                units,
-                report["diagnostics"]["record"],
-            )
-        if identified.signals is not None and several:  # a record plot per input
-            u, y = identified.signals
-            for index, name in enumerate(identified.input_names):
-                plot_record(
-                    out / f"record_input{index + 1}.png",
-                    u[:, index],
-                    y,
-                    request.ts,
-                    (units[0][index], units[1]),
-                    report["diagnostics"]["inputs"][name]["record"],
-                )
-        for fitted in fitted_models:
-            stem = f"{fitted.method}_order{fitted.order}"
-            plot_compare(out / f"compare_{stem}.png", fitted, parts, request.ts, units[1])
-            plot_residuals(out / f"residuals_{stem}.png", fitted, parts)
-
     report["removed_stale_files"] = remove_stale_outputs(
         out, [f"{fitted.method}_order{fitted.order}" for fitted in fitted_models]
     )
-    plotting = BackgroundTask(f"plotting into {out}", plots)
+    plotter = plotter or start_plot_worker(out)
+    try:
+        for call in plot_calls(identified, out):
+            plotter.send(call)
+        _write_model_files(identified, out, convertible)
+        (out / "report.json").write_text(json.dumps(report, indent=1))
+        plotter.wait()
+    except BaseException:
+        plotter.stop()
+        raise
+    return report
+
+
+def _write_model_files(identified: "IdentificationRun", out: Path, convertible: bool) -> None:
+    """One model file per order, each read back before it is written; named in the report.
+
+    ``convertible``: whether the units convert to SI, so a design could load the file.
+    """
+    request, units, offsets = identified.request, identified.units, identified.offsets
+    several = not isinstance(units[0], str)
     linear = request.detrend == "linear"
-    for fitted, entry in zip(fitted_models, report["models"], strict=True):
+    for fitted, entry in zip(identified.fitted_models, identified.report["models"], strict=True):
         contents = model_file_contents(
             fitted,
             input_unit=units[0],
@@ -611,9 +552,6 @@ def write_identification(identified: "IdentificationRun", out: str | Path) -> di
             (input_models_from_contents if several else model_from_contents)(contents, str(path))
         path.write_text(yaml.safe_dump(contents, sort_keys=False))
         entry["model_file"] = str(path)
-    (out / "report.json").write_text(json.dumps(report, indent=1))
-    plotting.wait()
-    return report
 
 
 # The files `maskless identify` writes per model, as globs and with the model's stem filled in.

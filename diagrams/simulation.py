@@ -244,8 +244,9 @@ def simulate_to_files(scenario: Scenario, out: str | Path, *, overwrite: bool = 
 def _simulate_into(scenario: Scenario, folder: RunFolder) -> dict:
     """``simulate_to_files``'s run, into ``folder``'s temporaries; ``files`` by final name."""
     from maskless.analysis.camera_frames_plot import plot_camera_frames
-    from maskless.analysis.closed_loop_plots import plot_closed_loop, prepare_plotting
-    from maskless.diagrams.background import Worker, serve_calls
+    from maskless.analysis.closed_loop_plots import plot_closed_loop
+    from maskless.diagrams.background import Worker
+    from maskless.diagrams.plot_worker import start_plot_worker
     from maskless.recording import write_recording_batches
 
     def report_progress(simulated_s, duration_s):
@@ -257,7 +258,7 @@ def _simulate_into(scenario: Scenario, folder: RunFolder) -> dict:
     # The second core works while the loop runs: one worker writes the recording as the samples
     # come in, another imports matplotlib and then plots.
     recorder = Worker(f"writing {mcap_path}", write_recording_batches, mcap_path, rendered)
-    plotter = Worker(f"plotting {png_path}", serve_calls, prepare_plotting)
+    plotter = start_plot_worker(png_path)
     long_run = scenario.duration_s >= _PROGRESS_MIN_DURATION_S
     try:
         run = simulate(

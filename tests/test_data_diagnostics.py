@@ -16,6 +16,7 @@ from identification_records import PAPER_DATA, paper_record
 import maskless
 from maskless.analysis.identification import data_diagnostics as dd
 from maskless.analysis.identification.fit_plots import plot_compare, plot_record
+from maskless.analysis.identification.part_curves import part_curves
 from maskless.diagrams.cli import main
 from maskless.diagrams.identification_run import (
     IdentificationRequest,
@@ -290,7 +291,8 @@ def test_the_plots_label_each_signal_in_its_own_unit(tmp_path, monkeypatch):
     u, y = clean_record()
     run = maskless.identify(40 + 10 * u, 21 + y, TS, input_unit="%", output_unit="degC")
     (fitted,) = run.fitted_models
-    plot_compare(tmp_path / "compare.png", fitted, run.parts, TS, run.units[1])
+    curves = [part_curves(fitted, part, run.parts[0]) for part in run.parts]
+    plot_compare(tmp_path / "compare.png", curves, "pem order 2", TS, run.units[1])
     plot_record(
         tmp_path / "record.png", *run.signals, TS, run.units, run.report["diagnostics"]["record"]
     )
@@ -302,7 +304,9 @@ def test_the_plots_label_each_signal_in_its_own_unit(tmp_path, monkeypatch):
     ]
     unknown = maskless.identify(u, y, TS)  # units not given: said so, not guessed
     labels.clear()
-    plot_compare(tmp_path / "c2.png", unknown.fitted_models[0], unknown.parts, TS, unknown.units[1])
+    (fitted,) = unknown.fitted_models
+    curves = [part_curves(fitted, part, unknown.parts[0]) for part in unknown.parts]
+    plot_compare(tmp_path / "c2.png", curves, "pem order 2", TS, unknown.units[1])
     assert labels == ["output - offset (unit not given)"] * 2
 
 

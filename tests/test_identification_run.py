@@ -1,6 +1,7 @@
 """maskless identify end to end: report and model files, MATLAB's figures on the paper record."""
 
 import json
+import multiprocessing
 
 import numpy as np
 import pytest
@@ -464,3 +465,16 @@ def test_two_input_columns_of_a_csv_give_a_two_input_model(tmp_path, capsys):
     flags[flags.index("mA")] = "mA,mA,mA"
     assert main(["identify", *flags, "--out", str(tmp_path / "bad")]) == 2
     assert "--input-unit 'mA,mA,mA': expected one unit for all 2 inputs" in capsys.readouterr().err
+
+
+def test_a_refused_record_leaves_no_plotting_worker_behind(tmp_path, capsys):
+    # The command forks its plotting worker before it reads a byte; a record refused after that
+    # stops it, so nothing outlives the command.
+    u, y, _, _ = simulate_record(2, "white", 300)
+    np.savetxt(tmp_path / "u.csv", u)
+    np.savetxt(tmp_path / "y.csv", y[:-5])  # lengths that differ
+    argv = ["identify", "--input", str(tmp_path / "u.csv"), "--output", str(tmp_path / "y.csv")]
+    assert main([*argv, "--ts", "0.1", "--out", str(tmp_path / "out")]) == 2
+    assert "u.csv has 300 values" in capsys.readouterr().err
+    assert multiprocessing.active_children() == []
+    assert not (tmp_path / "out" / "report.json").exists()

@@ -18,18 +18,19 @@ import maskless.recording
 
 # Libraries a CSV identification never uses (the plots import matplotlib in their own function).
 UNUSED_BY_CSV_IDENTIFY = ("pydrake", "mcap", "google.protobuf", "foxglove", "cv2")
-# Printed by the fresh interpreter after the code under test: which of those it loaded.
+# Printed by the fresh interpreter after the code under test: which of the libraries it loaded.
 _LOADED = (
     "import json, sys; "
-    f"print(json.dumps([name for name in {[*UNUSED_BY_CSV_IDENTIFY, 'matplotlib']!r} "
+    "print(json.dumps([name for name in {libraries!r} "
     "if any(m == name or m.startswith(name + '.') for m in sys.modules)]))"
 )
 
 
-def loaded_by(code: str) -> list[str]:
-    """The libraries of interest that ``code`` loads in a fresh interpreter."""
+def loaded_by(code: str, libraries=(*UNUSED_BY_CSV_IDENTIFY, "matplotlib")) -> list[str]:
+    """Which of ``libraries`` ``code`` loads in a fresh interpreter."""
+    listing = _LOADED.format(libraries=list(libraries))
     done = subprocess.run(
-        [sys.executable, "-c", f"{code}\n{_LOADED}"], capture_output=True, text=True, check=True
+        [sys.executable, "-c", f"{code}\n{listing}"], capture_output=True, text=True, check=True
     )
     return json.loads(done.stdout.splitlines()[-1])
 
@@ -42,6 +43,18 @@ def loaded_by_identify_import():
 @pytest.mark.parametrize("library", [*UNUSED_BY_CSV_IDENTIFY, "matplotlib"])
 def test_importing_the_identify_command_loads_no_unused_library(loaded_by_identify_import, library):
     assert library not in loaded_by_identify_import
+
+
+def test_the_identify_command_module_loads_no_estimator():
+    # Its plotting worker is forked before the estimators are imported, so that matplotlib's
+    # import overlaps scipy's: the module the command starts from must not import scipy.
+    assert loaded_by("import maskless.diagrams.commands.identify", ("scipy",)) == []
+
+
+def test_the_plotting_worker_needs_no_estimator():
+    # What it is sent (the plot functions and their curves) unpickles without scipy.
+    code = "import maskless.analysis.identification.fit_plots"
+    assert loaded_by(code, ("scipy", "pydrake")) == []
 
 
 def test_a_whole_csv_identification_loads_none_of_them(tmp_path):

@@ -1,6 +1,8 @@
 """Plots of an identification: the record, measured against predicted output, residuals.
 
 Every axis carrying a signal names the record's unit as given (a temperature in degC stays degC).
+They draw what they are given (``part_curves``) and import only numpy and matplotlib: the plotting
+process `maskless identify` starts early need not import the estimators.
 """
 
 from pathlib import Path
@@ -8,16 +10,40 @@ from pathlib import Path
 import numpy as np
 
 from maskless.analysis.identification.fit_metrics import fit_percent
-from maskless.analysis.identification.report import FittedModel, Part, initial_state_for_part
-from maskless.analysis.identification.residual_analysis import residual_correlations
+from maskless.analysis.identification.part_curves import PartCurves
+
+# Margins around and between the axes (inches): room for tick labels, axis labels and titles.
+# Fixed rather than a layout engine's: "constrained" measures every text twice per figure, which
+# doubled the plots' time (1.7 s against 0.9 s for the three on a 20,000-sample record), and the
+# plots wait on it at the end of `maskless identify`.
+_MARGIN_IN = {"left": 0.85, "right": 0.2, "top": 0.45, "bottom": 0.55}
+# Between rows: tick labels and a title; with an x label on every row, that too.
+_ROW_GAP_IN, _LABELLED_ROW_GAP_IN, _COLUMN_GAP_IN = 0.8, 1.05, 0.7
 
 
-def _figure(width, height):
+def _figure(width, height, rows, columns=1, *, top_in=_MARGIN_IN["top"], row_gap_in=_ROW_GAP_IN):
+    """A ``width`` x ``height`` inch Figure whose ``rows`` x ``columns`` grid has fixed margins.
+
+    ``top_in`` makes room above the first row (a figure title); ``row_gap_in`` between rows.
+    """
     # Imported here: matplotlib is slow to import and only these functions need it. A bare Figure
     # needs no GUI backend and no pyplot.
     from matplotlib.figure import Figure
 
-    return Figure(figsize=(width, height), layout="constrained")
+    row_height = (height - top_in - _MARGIN_IN["bottom"] - (rows - 1) * row_gap_in) / rows
+    column_width = (
+        width - _MARGIN_IN["left"] - _MARGIN_IN["right"] - (columns - 1) * _COLUMN_GAP_IN
+    ) / columns
+    figure = Figure(figsize=(width, height))
+    figure.subplots_adjust(
+        left=_MARGIN_IN["left"] / width,
+        right=1.0 - _MARGIN_IN["right"] / width,
+        top=1.0 - top_in / height,
+        bottom=_MARGIN_IN["bottom"] / height,
+        hspace=row_gap_in / row_height,
+        wspace=_COLUMN_GAP_IN / column_width,
+    )
+    return figure
 
 
 def unit_label(unit: str) -> str:
@@ -47,7 +73,7 @@ def plot_record(
         diagnostics: the report's ``diagnostics["record"]`` entry (``RecordDiagnostics`` as a
             dict).
     """
-    figure = _figure(11, 6.0)
+    figure = _figure(11, 6.0, 2, row_gap_in=0.3)  # shared time axis: no labels between
     axes = figure.subplots(2, 1, sharex=True)
     time_s = np.arange(u.size) * sample_period_s
     clipping = diagnostics["clipping"]
@@ -95,31 +121,29 @@ def plot_record(
 
 
 def plot_compare(
-    path: str | Path, fitted: FittedModel, parts: list[Part], sample_period_s: float, unit: str
+    path: str | Path, curves: list[PartCurves], model_name: str, sample_period_s: float, unit: str
 ) -> Path:
-    """Measured output against the one-step prediction and the simulation, on each part.
+    """Measured output against the one-step prediction and the simulation, a row per part.
 
-    The prediction and the simulation start from the same initial states as the report's figures.
+    Args:
+        path: the PNG to write.
+        curves: per part, the model's curves (``part_curves``: the prediction and the simulation
+            start from the same initial states as the report's figures).
+        model_name: how the titles name the model (e.g. "pem order 2, UNSTABLE").
+        sample_period_s: Ts (s).
+        unit: the output's unit, shown as given.
     """
-    model = fitted.polynomials
-    figure = _figure(11, 3.2 * len(parts))
-    axes = figure.subplots(len(parts), 1, squeeze=False)[:, 0]
-    estimation = parts[0]
-    for axis, part in zip(axes, parts, strict=True):
-        one_step = model.predict(
-            part.u, part.y, initial_state_for_part(fitted, part, estimation, "one_step")
-        )
-        simulated = model.simulate(
-            part.u, initial_state_for_part(fitted, part, estimation, "simulation")
-        )
-        time_s = np.arange(part.y.size) * sample_period_s
-        axis.plot(time_s, one_step, lw=1.2, color="tab:blue", label="1-step prediction")
-        axis.plot(time_s, simulated, lw=1.2, color="tab:orange", label="simulation")
-        axis.plot(time_s, part.y, lw=0.6, color="black", label="measured")  # drawn on top
-        stability = "" if fitted.linear_models[0].is_stable() else ", UNSTABLE"
+    figure = _figure(11, 3.2 * len(curves), len(curves))
+    axes = figure.subplots(len(curves), 1, squeeze=False)[:, 0]
+    for axis, part in zip(axes, curves, strict=True):
+        time_s = np.arange(part.measured.size) * sample_period_s
+        axis.plot(time_s, part.one_step, lw=1.2, color="tab:blue", label="1-step prediction")
+        axis.plot(time_s, part.simulated, lw=1.2, color="tab:orange", label="simulation")
+        axis.plot(time_s, part.measured, lw=0.6, color="black", label="measured")  # on top
         axis.set_title(
-            f"{fitted.method} order {model.order}{stability}, {part.name} part: fit 1-step "
-            f"{fit_percent(part.y, one_step):.3f} %, sim {fit_percent(part.y, simulated):.1f} %"
+            f"{model_name}, {part.name} part: fit 1-step "
+            f"{fit_percent(part.measured, part.one_step):.3f} %, "
+            f"sim {fit_percent(part.measured, part.simulated):.1f} %"
         )
         axis.set_ylabel(f"output - offset {unit_label(unit)}")
         axis.legend(loc="upper right", fontsize=8)
@@ -128,20 +152,17 @@ def plot_compare(
     return Path(path)
 
 
-def plot_residuals(path: str | Path, fitted: FittedModel, parts: list[Part]) -> Path:
-    """For each part, the one-step residuals' autocorrelation and cross-correlation with the input.
+def plot_residuals(path: str | Path, curves: list[PartCurves], model_name: str) -> Path:
+    """Per part, the one-step residuals' autocorrelation and cross-correlation with each input.
 
-    Each is drawn with its 99 % band.
+    Each is drawn with its 99 % band; with m inputs, one cross-correlation per input on one axis.
     """
-    model = fitted.polynomials
-    figure = _figure(12, 3.0 * len(parts))
-    grid = figure.subplots(len(parts), 2, squeeze=False)
-    for (auto, cross), part in zip(grid, parts, strict=True):
-        x0 = initial_state_for_part(fitted, part, parts[0], "one_step")
-        residuals = part.y - model.predict(part.u, part.y, x0)
-        # With m inputs, one cross-correlation per input on one axis.
-        inputs = [part.u] if part.u.ndim == 1 else list(part.u.T)
-        every = [residual_correlations(residuals, u) for u in inputs]
+    figure = _figure(
+        12, 3.0 * len(curves), len(curves), 2, top_in=0.75, row_gap_in=_LABELLED_ROW_GAP_IN
+    )
+    grid = figure.subplots(len(curves), 2, squeeze=False)
+    for (auto, cross), part in zip(grid, curves, strict=True):
+        every = part.correlations
         c = every[0]
         auto.stem(c.lags, c.autocorrelation, basefmt=" ")
         auto.axhspan(-c.band, c.band, color="tab:blue", alpha=0.15, label="99 % band")
@@ -162,6 +183,6 @@ def plot_residuals(path: str | Path, fitted: FittedModel, parts: list[Part]) -> 
             cross.legend(loc="upper right", fontsize=8)
         cross.set_title(f"{part.name}: cross-correlation of input and residuals")
         cross.set_xlabel("lag (samples; > 0: input leads)")
-    figure.suptitle(f"{fitted.method} order {model.order}: residual analysis")
+    figure.suptitle(f"{model_name}: residual analysis")
     figure.savefig(path, dpi=100)
     return Path(path)

@@ -10,7 +10,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import scipy.signal
 
 from maskless.errors import MissingFileError, RecordError
 from maskless.recording import current_name
@@ -212,6 +211,10 @@ def detrend(u: np.ndarray, y: np.ndarray, mode: str) -> Detrended:
     if mode == "mean":
         return Detrended(u - u.mean(), y - y.mean(), float(u.mean()), float(y.mean()))
     if mode == "linear":
+        # Imported here: this module is read before a command has chosen what it runs, and
+        # scipy.signal takes most of a second to import.
+        import scipy.signal
+
         u_detrended = scipy.signal.detrend(u, type="linear")
         y_detrended = scipy.signal.detrend(y, type="linear")
         u_trend, y_trend = u - u_detrended, y - y_detrended

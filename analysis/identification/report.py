@@ -20,22 +20,20 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from maskless.analysis.identification import data_diagnostics
+from maskless.analysis.identification import METHODS, data_diagnostics
 from maskless.analysis.identification.fit_metrics import evaluate_fit, fit_percent
 from maskless.analysis.identification.innovations_model import InnovationsModel
 from maskless.analysis.identification.input_diagnostics import diagnose_inputs
+from maskless.analysis.identification.part_curves import initial_state_for_part, part_curves
 from maskless.analysis.identification.prediction_error import (
     estimate_ar,
     estimate_arx,
     estimate_pem,
     parameter_count,
 )
-from maskless.analysis.identification.residual_analysis import residual_correlations
 from maskless.analysis.identification.subspace import HORIZON_RULE, estimate_n4sid
 from maskless.errors import ModelError
 from maskless.systems.linear_model import LinearModel, stable
-
-METHODS = ("pem", "armax", "arx", "n4sid")
 
 # The verdict's thresholds, in fit points on the validation part. They are conventions, not
 # derived values: 0.1 points is ten times the precision of the fits in the paper's Table I; a
@@ -190,16 +188,6 @@ def _fit(method, part, order, sample_period_s, estimate_initial_state, progress)
     raise ValueError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
 
 
-def initial_state_for_part(fitted: FittedModel, part: Part, estimation: Part, horizon: str):
-    """The x(0) a figure uses (see the module docstring)."""
-    model = fitted.polynomials
-    if not fitted.estimated_initial_state:
-        return np.zeros(model.order)
-    if part is estimation and horizon == "one_step":
-        return model.initial_state
-    return model.initial_state_for(part.u, part.y, horizon)
-
-
 def part_figures(
     fitted: FittedModel, part: Part, estimation: Part, k_step: int | None = None
 ) -> dict:
@@ -210,11 +198,8 @@ def part_figures(
     whiteness is the share of lags outside the 99 % bands.
     """
     model = fitted.polynomials
-    x0 = initial_state_for_part(fitted, part, estimation, "one_step")
-    one_step = model.predict(part.u, part.y, x0)
-    simulated = model.simulate(
-        part.u, initial_state_for_part(fitted, part, estimation, "simulation")
-    )
+    curves = part_curves(fitted, part, estimation)
+    one_step, simulated = curves.one_step, curves.simulated
     metrics = evaluate_fit(part.y, one_step, fitted.parameters)
     # An unstable system's simulation overflows on a long part: its fit is then -inf or NaN
     # (inf - inf), which the verdict names, rather than a numpy warning.
@@ -235,11 +220,10 @@ def part_figures(
         # The first k samples have no k-step prediction from data.
         figures[f"fit_percent_{k_step}step"] = fit_percent(part.y[k_step:], k_ahead[k_step:])
     if part.u.ndim == 1:
-        correlations = residual_correlations(part.y - one_step, part.u)
-        figures["residuals_outside_99_percent_band"] = correlations.fraction_outside()
+        figures["residuals_outside_99_percent_band"] = curves.correlations[0].fraction_outside()
         return figures
     # With m inputs the residuals' whiteness is one figure, their independence one per input.
-    per_input = [residual_correlations(part.y - one_step, u).fraction_outside() for u in part.u.T]
+    per_input = [correlations.fraction_outside() for correlations in curves.correlations]
     figures["residuals_outside_99_percent_band"] = {
         "autocorrelation": per_input[0]["autocorrelation"],
         "cross_correlation_per_input": [shares["cross_correlation"] for shares in per_input],

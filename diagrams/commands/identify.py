@@ -16,18 +16,17 @@ import argparse
 import json
 from pathlib import Path
 
+from maskless.analysis.identification import METHODS
 from maskless.analysis.identification.model_file import MODEL_FILE_UNITS
 from maskless.analysis.identification.records import VALVE_CURRENTS_FIELDS
 from maskless.diagrams.cli import add_out_argument, given_labels
-from maskless.diagrams.identification_run import (
+from maskless.diagrams.identification_request import (
     DEFAULT_MCAP_INPUT,
     DEFAULT_MCAP_OUTPUT,
     DETREND_MODES,
-    METHODS,
     IdentificationRequest,
-    format_identification_report,
-    identify_to_files,
 )
+from maskless.diagrams.plot_worker import start_plot_worker
 from maskless.errors import ConfigError
 
 # The request's fields as the flags name them, so an error names the flag that was given.
@@ -184,6 +183,18 @@ def run_command(args: argparse.Namespace) -> int:
         )
         print(json.dumps(report) if args.json else format_hammerstein_report(report))
         return 0
-    report = identify_to_files(identification_request(args), args.out)
+    request = identification_request(args)
+    # Forked before the estimators are imported: matplotlib's import overlaps scipy's.
+    plotter = start_plot_worker(args.out)
+    try:
+        from maskless.diagrams.identification_run import (
+            format_identification_report,
+            identify_to_files,
+        )
+
+        report = identify_to_files(request, args.out, plotter)
+    except BaseException:
+        plotter.stop()
+        raise
     print(json.dumps(report) if args.json else format_identification_report(report, args.out))
     return 0

@@ -67,6 +67,7 @@ from maskless.systems.plumbing import remove_plumbing
 from maskless.systems.sensing.camera_error import add_camera_error
 from maskless.systems.sensing.depth_sensor import add_depth_sensor
 from maskless.systems.sensing.local_kalman_filter import add_local_kalman_filter
+from maskless.systems.sensing.pressure_sensor import add_pressure_sensor
 from maskless.systems.sensing.track_fusion import add_track_fusion
 
 PNEUMATIC_PLANT_NAME = "pneumatic_plant"
@@ -180,17 +181,18 @@ def add_plant(
             context_parameters=plant_context_parameters,
             time_factors=plant_fault_factors(config.faults),
         )
-        # The bladder's pressure sensor (a real positioner has one): the gauge pressure state.
-        sensor = builder.AddNamedSystem(
-            "bladder_pressure_sensor", MatrixGain(np.eye(len(state))[[GAUGE_PRESSURE]])
+        # The bladder's gauge pressure, from the plant's state; the supervisor reads it through
+        # the pressure sensor (assemble_loop), the recording as it is.
+        pressure = builder.AddNamedSystem(
+            "bladder_gauge_pressure", MatrixGain(np.eye(len(state))[[GAUGE_PRESSURE]])
         )
-        builder.Connect(plant.outputs["state"], sensor.get_input_port())
+        builder.Connect(plant.outputs["state"], pressure.get_input_port())
         return AddedPlant(
             inlet=plant.inputs["inlet_valve_current_a"],
             outlet=plant.inputs["outlet_valve_current_a"],
             head_height=plant.outputs["head_height_m"],
             start_height_m=p.rest_head_height_m + state[LIFT],
-            gauge_pressure=sensor.get_output_port(),
+            gauge_pressure=pressure.get_output_port(),
         )
     model, camera_height_m = linear_plant_model(config)
     if isinstance(model, HammersteinModel):
@@ -544,7 +546,7 @@ def assemble_loop(
     }
     valves = (drive.inlet, drive.outlet)
     if config.safety.enabled and drive.controller is not None:
-        safety = _add_supervisor(builder, config, plant, drive, sensing)
+        safety = _add_supervisor(builder, config, plant, drive, sensing, late)
         valves = (safety.outputs["inlet_valve_current_a"], safety.outputs["outlet_valve_current_a"])
         for port in ("inlet_valve_current_a", "outlet_valve_current_a", *SAFETY_STATUS):
             logged[f"safety.{port}"] = safety.outputs[port]
@@ -575,13 +577,27 @@ def assemble_loop(
     )
 
 
-def _add_supervisor(builder, config: Scenario, plant: AddedPlant, drive: LoopDrive, sensing):
-    """The safety supervisor between ``drive``'s commands and the valves (safety_supervisor)."""
+def _add_supervisor(
+    builder, config: Scenario, plant: AddedPlant, drive: LoopDrive, sensing, late
+) -> PortMap:
+    """The safety supervisor between ``drive``'s commands and the valves (safety_supervisor).
+
+    It reads the bladder's pressure through the pressure sensor (its noise source, if any, waits
+    in ``late``).
+    """
     p = config.pneumatic
-    pressure = plant.gauge_pressure
-    if pressure is None:  # a model plant has no bladder: its pressure check never fires
+    if plant.gauge_pressure is None:  # a model plant has no bladder: its pressure check never fires
         pressure = builder.AddNamedSystem("no_pressure_sensor", ConstantVectorSource([0.0]))
         pressure = pressure.get_output_port()
+    else:
+        pressure = add_pressure_sensor(
+            builder,
+            "bladder_pressure_sensor",
+            config.pressure_sensor,
+            plant.gauge_pressure,
+            drive.period_s,
+            late,
+        )
     low = p.rest_head_height_m + p.min_lift_m
     high = p.rest_head_height_m + p.max_lift_m
     safety = add_safety_supervisor(

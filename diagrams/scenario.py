@@ -55,6 +55,11 @@ from maskless.systems.sensing.fault_detection import (
     validate_fault_detection,
 )
 from maskless.systems.sensing.local_kalman_filter import LocalFilterConfig
+from maskless.systems.sensing.pressure_sensor import (
+    PressureSensorConfig,
+    pace_check_noise_pa,
+    validate_pressure_sensor,
+)
 
 
 @dataclass
@@ -255,6 +260,8 @@ class Scenario:
             controller's design never sees them.
         fault_detection: the estimator's checks of each camera and of the fused estimate.
         safety: the supervisor between the controller and the valves, and its limits.
+        pressure_sensor: the bladder's gauge pressure sensor the supervisor reads (pneumatic
+            plant only).
     """
 
     random_seed: int = 0
@@ -270,6 +277,7 @@ class Scenario:
     local_filter: LocalFilterConfig = field(default_factory=LocalFilterConfig)
     fault_detection: FaultDetectionConfig = field(default_factory=FaultDetectionConfig)
     safety: SafetyConfig = field(default_factory=SafetyConfig)
+    pressure_sensor: PressureSensorConfig = field(default_factory=PressureSensorConfig)
     metrics: MetricsConfig = field(default_factory=MetricsConfig)
     paper: PaperParameters = field(default_factory=PaperParameters)
     pneumatic: PneumaticParameters = field(default_factory=PneumaticParameters)
@@ -455,6 +463,16 @@ def validate_scenario(config: Scenario) -> None:
     )
     validate_fault_detection(config.fault_detection)
     validate_safety(config.safety, config.metrics.tolerance_m)
+    validate_pressure_sensor(config.pressure_sensor)
+    sensor_noise_pa = pace_check_noise_pa(config.pressure_sensor)
+    if config.safety.enabled:
+        require(
+            config.safety.max_pressure_step_pa > sensor_noise_pa,
+            "safety.max_pressure_step_pa",
+            config.safety.max_pressure_step_pa,
+            f"above the {sensor_noise_pa:.4g} Pa the pressure sensor alone moves the pace check "
+            "by (two counts and 5 sigma of its noise: pressure_sensor)",
+        )
     for field_name in ("initial_position_std_m", "initial_velocity_std_m_s"):
         value = getattr(config.local_filter, field_name)
         require(value > 0, f"local_filter.{field_name}", value, "a positive std")

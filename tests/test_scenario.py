@@ -282,7 +282,8 @@ def test_a_shipped_preset_by_name_is_its_file_applied_before_the_config(tmp_path
     assert both.cameras["kinect_v1"].error.white_noise_std_m == 0.001  # the file wins
     assert both.cameras["kinect_v2"].error == by_name.cameras["kinect_v2"].error
     with pytest.raises(
-        ConfigError, match="no scenario preset 'paper'; shipped: paper_camera_noise"
+        ConfigError,
+        match="no scenario preset 'paper'; shipped: noisy_pressure_sensor, paper_camera",
     ):
         load_scenario(presets=["paper"])
 

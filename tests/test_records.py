@@ -8,6 +8,7 @@ from maskless.analysis.identification.records import (
     VALVE_CURRENTS_FIELDS,
     detrend,
     parse_range,
+    read_aligned_mcap,
     read_csv_signal,
     read_mcap_signals,
 )
@@ -142,3 +143,48 @@ def test_bad_multi_field_specs_are_refused(tmp_path, spec, message):
     _command_recording(path, np.zeros(3), np.zeros(3))
     with pytest.raises(RecordError, match=message):
         read_mcap_signals(path, spec)
+
+
+def _height_recording(path, times_ns, heights):
+    columns = {
+        "head_height_m": heights,
+        "head_velocity_m_s": np.zeros(heights.size),
+        "covariance": np.tile(np.eye(2), (heights.size, 1, 1)),
+    }
+    channel = Channel("/fusion/estimate", times_ns, columns)
+    write_recording(path, [channel])
+
+
+def test_aligned_signals_keep_the_shared_samples_and_their_period(tmp_path):
+    rng = np.random.default_rng(1)
+    inlet, outlet = rng.uniform(0, 0.165, 40), rng.uniform(0, 0.165, 40)
+    currents_path, height_path = tmp_path / "u.mcap", tmp_path / "y.mcap"
+    times_ns = _command_recording(currents_path, inlet, outlet)
+    # The output starts three samples late: only the 37 shared log times are kept, in step.
+    heights = rng.uniform(0.1, 0.2, 37)
+    _height_recording(height_path, times_ns[3:], heights)
+    u, y, period_s = read_aligned_mcap(
+        currents_path, VALVE_CURRENTS_FIELDS, height_path, "/fusion/estimate:head_height_m"
+    )
+    np.testing.assert_array_equal(u, np.column_stack([inlet, outlet])[3:])
+    np.testing.assert_array_equal(y, heights)
+    assert period_s == pytest.approx(0.048)
+
+
+def test_aligned_signals_with_a_gap_are_refused_naming_where(tmp_path):
+    currents_path, height_path = tmp_path / "u.mcap", tmp_path / "y.mcap"
+    times_ns = _command_recording(currents_path, np.zeros(40), np.zeros(40))
+    # Ten output samples missing in the middle: the shared samples are not one sequence.
+    kept = np.r_[0:15, 25:40]
+    _height_recording(height_path, times_ns[kept], np.zeros(kept.size))
+    with pytest.raises(RecordError, match=r"share no samples between 0\.672 s and 1\.200 s"):
+        read_aligned_mcap(
+            currents_path, VALVE_CURRENTS_FIELDS, height_path, "/fusion/estimate:head_height_m"
+        )
+    with pytest.raises(RecordError, match="expected one field"):
+        read_aligned_mcap(
+            currents_path,
+            "/controller/command:inlet_valve_current_a",
+            currents_path,
+            VALVE_CURRENTS_FIELDS,
+        )

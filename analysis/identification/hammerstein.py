@@ -86,6 +86,8 @@ class HammersteinFit:
         evaluations: cost evaluations the search made.
         searches: per search run (one per starting guess), its final cost over the best one's
             and the starting current of each valve it ended at; empty when none finished.
+        highest_currents: per valve, the highest current of the estimation record: a saturation
+            past it was never seen, only allowed.
     """
 
     model: HammersteinModel
@@ -95,6 +97,7 @@ class HammersteinFit:
     start_fit_percent: float
     evaluations: int
     searches: tuple[tuple[float, tuple[float, ...]], ...] = ()
+    highest_currents: tuple[float, ...] = ()
 
     def starting_current_spread(self, tolerance: float = 0.01) -> list[tuple[float, float]]:
         """Per valve, (lowest, highest) starting current of the searches that fit about as well.
@@ -109,14 +112,21 @@ class HammersteinFit:
         return [(min(values), max(values)) for values in zip(*close, strict=True)]
 
     def summary(self, input_names=("inlet", "outlet")) -> dict:
-        """Per valve: starting and saturation current, the static curve's knots; and the poles."""
+        """Per valve: its map's ends, spread and static curve; and the poles.
+
+        Each valve's starting current and ``starting_current_spread``, saturation current and
+        the record's highest current, DC gain and the static curve at the map's knots.
+        """
         model = self.model
         gains = model.dc_gains()
+        spread = self.starting_current_spread()
         valves = {}
         for i, valve_map in enumerate(model.maps):
             name = input_names[i] if i < len(input_names) else f"input_{i}"
             valves[name] = {
                 "starting_current": valve_map.starting_current,
+                "starting_current_spread": list(spread[i]),
+                "highest_current_in_record": self.highest_currents[i],
                 "saturation_current": valve_map.saturation_current,
                 "dc_gain": float(gains[i]),
                 "curve_currents": valve_map.currents.tolist(),
@@ -446,6 +456,7 @@ class _Problem:
             simulation_fit_percent=fit_percent(y, model.simulate(u)),
             start_fit_percent=fit_percent(y, start_model.simulate(u)),
             evaluations=int(evaluations),
+            highest_currents=tuple(float(h) for h in self.u_low + self.u_range),
         )
 
     def model(self, theta, sample_period_s, units) -> HammersteinModel:

@@ -144,6 +144,45 @@ def read_mcap_signals(
     return signals
 
 
+def read_aligned_mcap(
+    input_path: str | Path, input_field: str, output_path: str | Path, output_field: str
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """(input, output (N,), sample period in s): the samples two recorded signals share.
+
+    The input is (N,), or (N, k) for "TOPIC:FIELD,FIELD,..."; the output is one field. A recording
+    holding both is read once. The period is the median step between shared log times.
+
+    Raises:
+        RecordError: an output of several fields, fewer than 2 shared samples, or a gap (a step
+            more than half a period off it): a record with gaps is not one sequence.
+    """
+    if Path(output_path) == Path(input_path):
+        (input_times, u), (output_times, y) = read_mcap_signals(
+            input_path, input_field, output_field
+        )
+    else:
+        ((input_times, u),) = read_mcap_signals(input_path, input_field)
+        ((output_times, y),) = read_mcap_signals(output_path, output_field)
+    if y.ndim != 1:  # "TOPIC:FIELD,FIELD" reads columns: several inputs, one output
+        raise RecordError(f"{output_path}: {output_field!r}: expected one field (one output)")
+    common, input_index, output_index = np.intersect1d(
+        input_times, output_times, return_indices=True
+    )
+    if common.size < 2:
+        raise RecordError(f"{input_path} and {output_path}: fewer than 2 common timestamps")
+    steps_s = np.diff(common) * 1e-9
+    period_s = float(np.median(steps_s))
+    off = np.abs(steps_s - period_s) > 0.5 * period_s
+    if np.any(off):
+        gap = int(np.argmax(off))
+        raise RecordError(
+            f"{input_path}: {input_field} and {output_field} share no samples between "
+            f"{common[gap] * 1e-9:.3f} s and {common[gap + 1] * 1e-9:.3f} s; a record with "
+            "gaps cannot be identified as one sequence"
+        )
+    return u[input_index], y[output_index], period_s
+
+
 def _field_values(path, recording, topic: str, field: str) -> tuple[np.ndarray, np.ndarray]:
     """(log times in ns, finite values) of ``topic``'s ``field`` in ``recording``."""
     messages = recording.messages[topic]

@@ -347,11 +347,9 @@ def multilevel_prbs(
     integer = not isinstance(num_levels, bool) and isinstance(num_levels, numbers.Integral)
     if not integer or num_levels < 2:
         raise ConfigError(f"num_levels must be an integer of at least 2; got {num_levels!r}")
-    shortest, longest = hold_samples(hold_s, sample_period_s)
     rng = np.random.default_rng(seed)
-    # Enough holds to fill the record even if every one is the shortest.
-    num_holds = -(-num_samples // shortest)
-    holds = rng.integers(shortest, longest + 1, size=num_holds)
+    holds = random_holds(rng, num_samples, hold_s, sample_period_s)
+    num_holds = holds.size
     first = rng.integers(num_levels)
     # A step of 1 to L - 1 levels (mod L) never lands on the level it leaves.
     steps = rng.integers(1, num_levels, size=num_holds - 1)
@@ -359,6 +357,22 @@ def multilevel_prbs(
     levels = np.linspace(offset - amplitude, offset + amplitude, num_levels)
     values = np.repeat(levels[level_index], holds)[:num_samples]
     return _signal(values, sample_period_s, "multilevel")
+
+
+def random_holds(rng, num_samples, hold_s, sample_period_s) -> np.ndarray:
+    """Hold lengths in whole samples, drawn uniformly from ``hold_samples``' range.
+
+    Enough of them to fill ``num_samples`` even if every one is the shortest; the last may run
+    past the end, for the caller to cut.
+
+    Args:
+        rng: the ``np.random.Generator`` the holds are drawn from (one draw of the array).
+        num_samples: the record's length N.
+        hold_s: (shortest, longest) hold (s), as ``hold_samples`` checks it.
+        sample_period_s: Sample period Ts (s).
+    """
+    shortest, longest = hold_samples(hold_s, sample_period_s)
+    return rng.integers(shortest, longest + 1, size=-(-num_samples // shortest))
 
 
 def hold_samples(hold_s, sample_period_s) -> tuple[int, int]:

@@ -38,8 +38,8 @@ from maskless.analysis.identification.records import (
     Detrended,
     detrend,
     parse_range,
+    read_aligned_mcap,
     read_csv_signal,
-    read_mcap_signals,
 )
 from maskless.analysis.identification.report import FittedModel, Part
 from maskless.analysis.identification.subspace import minimum_samples as subspace_minimum
@@ -143,37 +143,15 @@ def read_record(
     if request.input.suffix == ".mcap" or output_path.suffix == ".mcap":
         input_field = request.input_column or DEFAULT_MCAP_INPUT
         output_field = request.output_column or DEFAULT_MCAP_OUTPUT
-        if output_path == request.input:  # one recording holds both: read it once
-            (input_times, u), (output_times, y) = read_mcap_signals(
-                request.input, input_field, output_field
-            )
-        else:
-            ((input_times, u),) = read_mcap_signals(request.input, input_field)
-            ((output_times, y),) = read_mcap_signals(output_path, output_field)
-        if y.ndim != 1:  # "TOPIC:FIELD,FIELD" reads columns: several inputs, one output
-            raise RecordError(f"{output_path}: {output_field!r}: expected one field (one output)")
-        common, input_index, output_index = np.intersect1d(
-            input_times, output_times, return_indices=True
-        )
-        if common.size < 2:
-            raise RecordError(f"{request.input} and {output_path}: fewer than 2 common timestamps")
-        steps_s = np.diff(common) * 1e-9
-        period_s = float(np.median(steps_s))
+        u, y, period_s = read_aligned_mcap(request.input, input_field, output_path, output_field)
         if abs(period_s - request.ts) > _TS_TOLERANCE * period_s:
             raise RecordError(
                 f"{label('ts')} {request.ts}: the recording's samples are {period_s:.6g} s apart"
             )
-        if np.any(np.abs(steps_s - period_s) > 0.5 * period_s):
-            gap = int(np.argmax(np.abs(steps_s - period_s) > 0.5 * period_s))
-            raise RecordError(
-                f"{request.input}: {input_field} and {output_field} share no samples between "
-                f"{common[gap] * 1e-9:.3f} s and {common[gap + 1] * 1e-9:.3f} s; a record with "
-                "gaps cannot be identified as one sequence"
-            )
         topic, _, fields = input_field.rpartition(":")
         input_units = tuple(_field_unit(f"{topic}:{field}") for field in fields.split(","))
         units = (input_units[0] if u.ndim == 1 else input_units, _field_unit(output_field))
-        return u[input_index], y[output_index], units
+        return u, y, units
     if request.output is None:
         raise RecordError(f"{label('output')} is required when {label('input')} is a CSV file")
     columns = _input_columns(request)

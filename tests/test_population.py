@@ -80,7 +80,8 @@ def test_a_missing_file_is_named(tmp_path):
         (
             "[paper_camera_noise]",
             "[paper_noise]",
-            "scenario_presets: no scenario preset 'paper_noise'; shipped: noisy_pressure_sensor, paper",
+            "scenario_presets: no scenario preset 'paper_noise'; shipped: noisy_pressure_sensor, "
+            "paper",
         ),
         ("duration_s: 14.0", "duration_s: -1.0", "duration_s"),
         ("inlet_authority_fraction: 0.9", "inlet_authority_fraction: 1.5", "authority_fraction"),

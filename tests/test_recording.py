@@ -73,8 +73,8 @@ def _make_channels(seed=0, scale=1):
 
     def floats(*shape):
         # Mixed magnitudes and signs: repr round trip must hold for all of them exactly. The
-        # powers of ten are parsed, not computed: numpy's vectorised pow differs in the last bit
-        # between CPUs (SVML on AVX-512), and a file's hash below must not depend on the machine.
+        # powers of ten are parsed, not computed: the hash below, taken with numpy's vectorised
+        # pow on another machine, did not reproduce here, and parsing is exact on every machine.
         exponents = rng.integers(-12, 6, size=shape)
         powers = np.vectorize(lambda k: float(f"1e{k}"))(exponents) if exponents.size else 1.0
         return rng.normal(size=shape) * powers

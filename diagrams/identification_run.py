@@ -33,7 +33,6 @@ from maskless.analysis.identification.model_file import (
     model_file_contents,
     model_from_contents,
 )
-from maskless.analysis.identification.part_curves import part_curves
 from maskless.analysis.identification.records import (
     Detrended,
     detrend,
@@ -432,7 +431,7 @@ def identify_to_files(
 def plot_calls(identified: "IdentificationRun", out: Path) -> list[tuple]:
     """The record, compare and residual plots of ``identified`` as ``serve_calls`` calls."""
     fitted_models, report, units = identified.fitted_models, identified.report, identified.units
-    ts, parts = identified.request.ts, identified.parts
+    ts = identified.request.ts
     calls = []
     if identified.signals is not None and isinstance(units[0], str):
         u, y = identified.signals
@@ -448,7 +447,7 @@ def plot_calls(identified: "IdentificationRun", out: Path) -> list[tuple]:
             )
     for fitted in fitted_models:
         stem = f"{fitted.method}_order{fitted.order}"
-        curves = [part_curves(fitted, part, parts[0]) for part in parts]
+        curves = list(fitted.curves)
         stability = "" if fitted.linear_models[0].is_stable() else ", UNSTABLE"
         name = f"{fitted.method} order {fitted.order}{stability}"
         compare = out / f"compare_{stem}.png"

@@ -84,7 +84,7 @@ def test_the_compare_plot_shows_the_reports_fits(tmp_path, parts, saved_figures)
     fitted = fit("pem", parts[0], 2, 0.1)
     plot_compare(tmp_path / "compare.png", curves_of(fitted, parts), "pem order 2", 0.1, "mm")
     for axis, part in zip(saved_figures[0].axes, parts, strict=True):
-        figures = part_figures(fitted, part, parts[0])
+        figures = part_figures(fitted, part, part_curves(fitted, part, parts[0]))
         title = axis.get_title()
         assert f"fit 1-step {figures['fit_percent_1step']:.3f} %" in title
         assert f"sim {figures['fit_percent_sim']:.1f} %" in title

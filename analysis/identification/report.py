@@ -24,7 +24,11 @@ from maskless.analysis.identification import METHODS, data_diagnostics
 from maskless.analysis.identification.fit_metrics import evaluate_fit, fit_percent
 from maskless.analysis.identification.innovations_model import InnovationsModel
 from maskless.analysis.identification.input_diagnostics import diagnose_inputs
-from maskless.analysis.identification.part_curves import initial_state_for_part, part_curves
+from maskless.analysis.identification.part_curves import (
+    PartCurves,
+    initial_state_for_part,
+    part_curves,
+)
 from maskless.analysis.identification.prediction_error import (
     estimate_ar,
     estimate_arx,
@@ -71,6 +75,8 @@ class FittedModel:
         details: what else the estimator reports (e.g. N4SID's horizon and singular values).
         input_models: per input, the single-input model from that input (the others held at
             their operating points), with the whole model's K and variance; (model,) for one.
+        curves: its curves on each part it was judged on (``identify`` sets them; the report's
+            figures and the plots both read them); empty before.
     """
 
     method: str
@@ -80,6 +86,7 @@ class FittedModel:
     parameters: int
     details: dict = field(default_factory=dict)
     input_models: tuple[LinearModel, ...] = ()
+    curves: tuple[PartCurves, ...] = ()
 
     @property
     def linear_models(self) -> tuple[LinearModel, ...]:
@@ -189,16 +196,16 @@ def _fit(method, part, order, sample_period_s, estimate_initial_state, progress)
 
 
 def part_figures(
-    fitted: FittedModel, part: Part, estimation: Part, k_step: int | None = None
+    fitted: FittedModel, part: Part, curves: PartCurves, k_step: int | None = None
 ) -> dict:
     """The figures of one part: its fits, its error figures and its residuals' whiteness.
 
     fit_percent_1step, fit_percent_sim, mse, fpe, naic, aic, bic and n, and fit_percent_{k}step
     when ``k_step`` is given; the error figures are those of the one-step prediction. The
-    whiteness is the share of lags outside the 99 % bands.
+    whiteness is the share of lags outside the 99 % bands. ``curves``: the model's on ``part``
+    (``part_curves``).
     """
     model = fitted.polynomials
-    curves = part_curves(fitted, part, estimation)
     one_step, simulated = curves.one_step, curves.simulated
     metrics = evaluate_fit(part.y, one_step, fitted.parameters)
     # An unstable system's simulation overflows on a long part: its fit is then -inf or NaN
@@ -446,7 +453,11 @@ def identify(
             progress,
             input_names if inputs > 1 else None,
         )
-        figures = {part.name: part_figures(fitted, part, estimation, k_step) for part in parts}
+        fitted = replace(fitted, curves=tuple(part_curves(fitted, p, estimation) for p in parts))
+        figures = {
+            part.name: part_figures(fitted, part, curves, k_step)
+            for part, curves in zip(parts, fitted.curves, strict=True)
+        }
         model_baselines = baseline_figures(fitted, parts, progress)
         gains = margins(figures[validation.name], model_baselines, naive, validation.name)
         entry = model_entry(fitted, figures, model_baselines, gains, validation.name)

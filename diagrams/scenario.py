@@ -30,6 +30,7 @@ from maskless.systems.config_loading import (
     load_config,
 )
 from maskless.systems.control.offset_free_lqg import OffsetFreeLqgWeights
+from maskless.systems.control.pressure_pace_check import lowest_drift_pa
 from maskless.systems.control.safety_supervisor import SafetyConfig, validate_safety
 from maskless.systems.fault_injection import FaultConfig, validate_faults
 from maskless.systems.limits import DURATION_S, IMAGE_RATE_HZ
@@ -57,7 +58,7 @@ from maskless.systems.sensing.fault_detection import (
 from maskless.systems.sensing.local_kalman_filter import LocalFilterConfig
 from maskless.systems.sensing.pressure_sensor import (
     PressureSensorConfig,
-    pace_check_noise_pa,
+    reading_noise_std_pa,
     validate_pressure_sensor,
 )
 
@@ -464,14 +465,16 @@ def validate_scenario(config: Scenario) -> None:
     validate_fault_detection(config.fault_detection)
     validate_safety(config.safety, config.metrics.tolerance_m)
     validate_pressure_sensor(config.pressure_sensor)
-    sensor_noise_pa = pace_check_noise_pa(config.pressure_sensor)
     if config.safety.enabled:
+        pace = config.safety.pressure_pace
+        lowest = lowest_drift_pa(pace, reading_noise_std_pa(config.pressure_sensor))
         require(
-            config.safety.max_pressure_step_pa > sensor_noise_pa,
-            "safety.max_pressure_step_pa",
-            config.safety.max_pressure_step_pa,
-            f"above the {sensor_noise_pa:.4g} Pa the pressure sensor alone moves the pace check "
-            "by (two counts and 5 sigma of its noise: pressure_sensor)",
+            pace.drift_pa >= lowest,
+            "safety.pressure_pace.drift_pa",
+            pace.drift_pa,
+            f"at least {lowest:.4g} Pa: twice the std of the tracker's residual that the "
+            "pressure sensor's noise and rounding alone give (pressure_sensor), or that noise "
+            "fills the pace check's sums",
         )
     for field_name in ("initial_position_std_m", "initial_velocity_std_m_s"):
         value = getattr(config.local_filter, field_name)

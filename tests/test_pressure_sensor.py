@@ -13,10 +13,11 @@ from maskless.diagrams.scenario import load_scenario, validate_scenario
 from maskless.diagrams.simulation import simulate
 from maskless.errors import ConfigError
 from maskless.systems.config_loading import asset_path
+from maskless.systems.control.pressure_pace_check import lowest_drift_pa
 from maskless.systems.sensing.pressure_sensor import (
     PressureSensorConfig,
     add_pressure_sensor,
-    pace_check_noise_pa,
+    reading_noise_std_pa,
     sensor_reading,
 )
 
@@ -67,18 +68,16 @@ def test_its_noise_has_the_stated_std_is_seeded_and_rounded():
     np.testing.assert_allclose(rounded / 12.2, np.round(rounded / 12.2), atol=1e-9)
 
 
-def test_the_pace_checks_allowance_is_two_counts_and_five_sigma_of_the_second_difference():
-    # Second difference of readings p(k) - 2 p(k-1) + p(k-2): rounding errors within half a count
-    # each add up to at most 2 counts; independent noise has variance (1 + 4 + 1) sigma^2.
-    assert pace_check_noise_pa(sensor(noise_std_pa=0.0)) == pytest.approx(24.4)
-    assert pace_check_noise_pa(sensor(resolution_pa=0.0, noise_std_pa=3.0)) == pytest.approx(
-        5 * math.sqrt(6) * 3.0
-    )
+def test_the_reading_noise_counts_the_rounding_as_uniform_over_one_count():
+    assert reading_noise_std_pa(sensor(noise_std_pa=0.0)) == pytest.approx(12.2 / math.sqrt(12))
+    assert reading_noise_std_pa(sensor(resolution_pa=0.0, noise_std_pa=3.0)) == pytest.approx(3.0)
+    # A smooth pressure's rounding errors, over many counts, have that std.
     ticks = np.arange(20000)
     smooth = 12000.0 * np.sin(2 * np.pi * ticks / 3001.0) + 0.37 * ticks - 3000.0  # within range
     readings = np.array([sensor_reading(float(p), 0.0, sensor()) for p in smooth])
-    second = np.diff(readings, 2) - np.diff(smooth, 2)
-    assert np.max(np.abs(second)) <= 24.4 + 1e-9
+    errors = readings - smooth
+    assert np.max(np.abs(errors)) <= 12.2 / 2 + 1e-9
+    assert np.std(errors) == pytest.approx(12.2 / math.sqrt(12), rel=0.03)
 
 
 @pytest.mark.parametrize(
@@ -96,10 +95,13 @@ def test_a_sensor_out_of_range_is_refused_naming_the_field(field, value, message
         validate_scenario(config)
 
 
-def test_a_pace_check_the_sensor_alone_would_trip_is_refused():
+def test_a_pace_check_the_sensor_alone_would_fill_is_refused():
     config = load_scenario()
-    config.pressure_sensor.noise_std_pa = 5.0  # 24.4 + 5 * sqrt(6) * 5 = 85.6 Pa
-    with pytest.raises(ConfigError, match=r"safety.max_pressure_step_pa = 40.0: expected above"):
+    # 2 x 1.3031 x sqrt(20^2 + 12.2^2 / 12) = 52.93 Pa, above the shipped 50 Pa.
+    config.pressure_sensor.noise_std_pa = 20.0
+    with pytest.raises(
+        ConfigError, match=r"safety.pressure_pace.drift_pa = 50.0: expected at least 52.93 Pa"
+    ):
         validate_scenario(config)
 
 
@@ -120,6 +122,7 @@ def test_a_noisy_sensor_leaves_every_other_draw_as_it_was():
 def test_the_noisy_preset_clears_its_own_sensor():
     config = load_scenario(asset_path("presets/noisy_pressure_sensor.yaml"))
     validate_scenario(config)
-    allowance = pace_check_noise_pa(config.pressure_sensor)
-    assert allowance == pytest.approx(24.4 + 5 * math.sqrt(6) * 12.2)
-    assert allowance < config.safety.max_pressure_step_pa
+    assert config.pressure_sensor.noise_std_pa == 12.2
+    pace = config.safety.pressure_pace
+    noise = reading_noise_std_pa(config.pressure_sensor)
+    assert lowest_drift_pa(pace, noise) < pace.drift_pa

@@ -24,18 +24,12 @@ Each reason has its safe action (``SAFE_ACTIONS``):
   valves' reach). The loop goes on: fully open is the most it can do, and held currents would
   drop the head back to where they were averaged (measured in the standard population with held
   currents: p95 up to 30 mm where the head was being lifted 25-30 mm for over 20 s).
-- ``pressure_jump`` (continue): the bladder's pressure changed its pace: the change over one
-  tick differs from the change over the tick before by more than ``max_pressure_step_pa`` plus
-  ``pressure_per_current_pa_per_a`` per ampere the commands changed by (this tick's change plus
-  the earlier ones fading by 0.7 a tick), in a still loop (the
-  pressure changed by at most ``still_pressure_step_pa`` over the tick before) whose valves get
-  the loop's commands. Holding the head, the loop moves the pressure by a few pascals a tick; a
-  sudden change of pace with steady commands is air moving by itself: a valve
-  stuck open or shut, a seam opening, the supply lost. The pressure sensor sees it at once, where
-  the cameras see the head move a quarter of a second later (their latency and noise). The loop
-  goes on: it is what can still fight a stuck inlet with the outlet (held currents could not:
-  measured, the head rose 6.2 mm holding and 4.3 mm with the loop on,
-  assets/faults/inlet-stuck-open.yaml).
+- ``pressure_jump`` (continue): the bladder's pressure stepped away from the pace it held, by more
+  than the loop's own commands explain, while the loop was still and its valves got its commands
+  (``pressure_pace_check``, configured by ``pressure_pace``): air moving by itself, a valve
+  stuck open or shut, a seam opening, the supply lost. The loop goes on: it is what can still
+  fight a stuck inlet with the outlet (held currents could not: measured, the head rose 6.2 mm
+  holding and 4.3 mm with the loop on, assets/faults/inlet-stuck-open.yaml).
 - ``overpressure`` (vent): the bladder's gauge pressure (its sensor) is above
   ``max_gauge_pressure_pa``, or the sensor reads no number.
 
@@ -64,7 +58,7 @@ plant's continuous state would be evaluated at each.
 """
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.symbolic import (
@@ -78,6 +72,12 @@ from pydrake.symbolic import (
 from pydrake.systems.framework import DiagramBuilder
 
 from maskless.systems.config_loading import UNSET, refuse_out_of_range
+from maskless.systems.control.pressure_pace_check import (
+    COMMAND_FADE,
+    PressurePaceConfig,
+    pace_check,
+    validate_pressure_pace,
+)
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
@@ -119,11 +119,7 @@ class SafetyConfig:
         max_gauge_pressure_pa: the bladder's pressure limit (Pa, gauge).
         max_full_inlet_s: the longest the inlet may be fully open in a row (s).
         disagreement_persist_s: how long two cameras may disagree before the air is held (s).
-        max_pressure_step_pa: the most the pressure's change per tick may change from one tick
-            to the next with the commands unchanged (Pa)...
-        pressure_per_current_pa_per_a: ...plus this much per ampere the commands changed by...
-        still_pressure_step_pa: ...in a loop whose pressure changed by at most this much over
-            the tick before (Pa).
+        pressure_pace: the check of the pressure's pace (``pressure_pace_check``).
         estimate_margin_m: the beam is held while the controller's estimated error is within
             this much of the tolerance (m).
         fused_error_band_m: ...or while the fused camera estimate's error is beyond this (m).
@@ -137,13 +133,11 @@ class SafetyConfig:
     max_gauge_pressure_pa: float = UNSET
     max_full_inlet_s: float = UNSET
     disagreement_persist_s: float = UNSET
-    max_pressure_step_pa: float = UNSET
-    pressure_per_current_pa_per_a: float = UNSET
-    still_pressure_step_pa: float = UNSET
     estimate_margin_m: float = UNSET
     fused_error_band_m: float = UNSET
     beam_dwell_s: float = UNSET
     hold_time_constant_s: float = UNSET
+    pressure_pace: PressurePaceConfig = field(default_factory=PressurePaceConfig)
 
 
 def validate_safety(config: SafetyConfig, tolerance_m: float) -> None:
@@ -164,13 +158,6 @@ def validate_safety(config: SafetyConfig, tolerance_m: float) -> None:
                 "disagreement_persist_s",
                 "a time >= 0",
             ),
-            (0 < config.max_pressure_step_pa < math.inf, "max_pressure_step_pa", positive),
-            (
-                0 <= config.pressure_per_current_pa_per_a < math.inf,
-                "pressure_per_current_pa_per_a",
-                "a value >= 0",
-            ),
-            (0 < config.still_pressure_step_pa < math.inf, "still_pressure_step_pa", positive),
             (
                 0 <= config.estimate_margin_m < tolerance_m,
                 "estimate_margin_m",
@@ -181,6 +168,7 @@ def validate_safety(config: SafetyConfig, tolerance_m: float) -> None:
             (0 < config.hold_time_constant_s < math.inf, "hold_time_constant_s", positive),
         ],
     )
+    validate_pressure_pace(config.pressure_pace, "safety.pressure_pace")
 
 
 def safety_states(mode: np.ndarray, reasons: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -287,20 +275,18 @@ def add_safety_supervisor(
         return float(math.ceil(limit_s / period_s - 1e-9))
 
     beam_allowed = Variable("beam_allowed")
-    last_pressure = Variable("last_gauge_pressure_pa")
+    pressure_level, pressure_pace = Variable("pressure_level_pa"), Variable("pressure_pace_pa")
+    pressure_rise, pressure_fall = Variable("pressure_rise_pa"), Variable("pressure_fall_pa")
     last_inlet, last_outlet = Variable("last_inlet_command_a"), Variable("last_outlet_command_a")
-    last_pressure_step = Variable("last_pressure_step_pa")
     last_activity = Variable("last_command_activity_a")
     low, high = head_height_limits_m
     margin = config.travel_margin_m
     commands_finite = _commands_finite(inlet, outlet)
     cleared = reset > 0.5
-    # The commands' recent changes (A): this tick's, plus the earlier ones fading by 0.7 a tick (a
-    # change moves the pressure's pace at once, then for a few ticks as the bladder follows). Only
-    # finite commands are remembered, and a reset forgets them.
-    command_activity = abs(inlet - last_inlet) + abs(outlet - last_outlet) + 0.7 * last_activity
-    explained = (
-        config.max_pressure_step_pa + config.pressure_per_current_pa_per_a * command_activity
+    # The commands' recent changes (A; pressure_pace_check). Only finite commands are remembered,
+    # and a reset forgets them.
+    command_activity = (
+        abs(inlet - last_inlet) + abs(outlet - last_outlet) + COMMAND_FADE * last_activity
     )
     inlet_out, outlet_out = _valve_currents(
         inlet,
@@ -314,6 +300,23 @@ def add_safety_supervisor(
     )
     at_full_inlet = inlet_out >= inlet_saturation_a
     watching = elapsed >= ticks(config.start_grace_s)
+    # Not while the supervisor itself moves the air (holding or venting), and from the third tick
+    # (the tracker starts at the first reading and has a pace from the second).
+    pressure_check = pace_check(
+        config.pressure_pace,
+        level=pressure_level,
+        pace=pressure_pace,
+        rise=pressure_rise,
+        fall=pressure_fall,
+        reading=pressure,
+        # A command passed on now reaches the pressure read at the next tick.
+        command_activity_a=last_activity,
+        first=elapsed < 0.5,
+        watched=logical_and(
+            logical_and(logical_not(supervising), logical_and(watching, elapsed >= 2)),
+            _within(estimated - reference, -tolerance_m, tolerance_m),
+        ),
+    )
     seen = tracks_used > 0.5
     failing = {
         "camera_excluded": logical_and(
@@ -333,25 +336,7 @@ def add_safety_supervisor(
         "inlet_full_too_long": logical_and(
             at_full_inlet, full_inlet + 1 >= ticks(config.max_full_inlet_s)
         ),
-        # The pressure's change from one tick to the next changes only when the loop changes its
-        # commands; not while the supervisor itself moves the air (holding or venting), and from
-        # the third tick (the first two have no pressure, then no pace, to compare with).
-        "pressure_jump": logical_and(
-            logical_and(
-                logical_and(
-                    logical_and(logical_not(supervising), logical_and(watching, elapsed >= 2)),
-                    _within(estimated - reference, -tolerance_m, tolerance_m),
-                ),
-                _within(
-                    last_pressure_step,
-                    -config.still_pressure_step_pa,
-                    config.still_pressure_step_pa,
-                ),
-            ),
-            logical_not(
-                _within(pressure - last_pressure - last_pressure_step, -explained, explained)
-            ),
-        ),
+        "pressure_jump": pressure_check.jump,
         "overpressure": logical_not(pressure <= config.max_gauge_pressure_pa),
     }
     band = tolerance_m - config.estimate_margin_m
@@ -421,10 +406,12 @@ def add_safety_supervisor(
         (full_inlet, if_then_else(at_full_inlet, full_inlet + 1, 0.0)),
         (inside, next_inside),
         (beam_allowed, next_allowed),
-        (last_pressure, Expression(pressure)),
+        (pressure_level, pressure_check.level),
+        (pressure_pace, pressure_check.pace),
+        (pressure_rise, pressure_check.rise),
+        (pressure_fall, pressure_check.fall),
         (last_inlet, remembered[0]),
         (last_outlet, remembered[1]),
-        (last_pressure_step, pressure - last_pressure),
         (last_activity, next_activity),
         (disagreeing, if_then_else(disagreement > 0.5, disagreeing + 1, 0.0)),
     ]

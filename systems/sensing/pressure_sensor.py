@@ -10,10 +10,8 @@ A resolution q of 0 reads the pressure unrounded and a sigma of 0 adds no noise 
 RandomSource): the ideal sensor. A noisy sensor's RandomSource is added after every other source
 (``late_random_sources``), so switching the noise on changes no camera's draws.
 
-The pace check compares the pressure's change over one tick with the change over the tick
-before: that second difference of the readings carries the converter's rounding (up to two counts
-for a smooth pressure) and sqrt(6) sigma of the noise, which its threshold must clear
-(``pace_check_noise_pa`` says how much).
+The pace check (``pressure_pace_check``) must forgive what the sensor alone moves its readings by:
+``reading_noise_std_pa`` is that noise's std, the rounding counted as a uniform error of one count.
 """
 
 import math
@@ -29,11 +27,6 @@ from pydrake.systems.primitives import RandomSource
 from maskless.systems.config_loading import UNSET, refuse_out_of_range
 from maskless.systems.late_random_sources import LateRandomSources, add_random_source
 from maskless.systems.named_symbolic_system import add_named_symbolic_system
-
-# Standard deviations of the noise's part of the pace check's second difference that its
-# threshold should clear: at 15 Hz a 600 s run reads it 9,000 times, and 5 sigma is exceeded
-# about once in 1.7 million readings.
-_PACE_CHECK_SIGMAS = 5.0
 
 
 @dataclass
@@ -71,13 +64,9 @@ def validate_pressure_sensor(config: PressureSensorConfig, prefix: str = "pressu
     )
 
 
-def pace_check_noise_pa(config: PressureSensorConfig) -> float:
-    """How far the sensor alone moves the readings' second difference (Pa), at most or 5 sigma.
-
-    Two counts of rounding (each reading within half a count, four of them weighted 1, 2, 1)
-    plus five standard deviations of sqrt(6) sigma: what a pace threshold must clear.
-    """
-    return 2.0 * config.resolution_pa + _PACE_CHECK_SIGMAS * math.sqrt(6.0) * config.noise_std_pa
+def reading_noise_std_pa(config: PressureSensorConfig) -> float:
+    """The std of a reading's error (Pa): the noise, and the rounding as uniform over one count."""
+    return math.sqrt(config.noise_std_pa**2 + config.resolution_pa**2 / 12.0)
 
 
 def sensor_reading(pressure, standard_normal, config: PressureSensorConfig):

@@ -43,6 +43,7 @@ import scipy.optimize
 import scipy.signal
 
 from maskless.analysis.identification.fit_metrics import fit_percent
+from maskless.analysis.identification.settled_curve import fit_static_curves, settled_levels
 from maskless.errors import ModelError
 from maskless.systems.hammerstein_model import HammersteinModel
 from maskless.systems.plant.valve_map import ValveMap
@@ -70,6 +71,9 @@ _LINEAR_MAP_WIDTH = 21.0
 _FLAT = 1e-3
 # Reflection coefficients are kept within this of +-1, so tanh's inverse stays finite.
 _REFLECTION_LIMIT = 1.0 - 1e-9
+# A hold has settled this many time constants of the slowest pole after it began: e^-4, 2 % of
+# its step, left (the tail's mean then carries less than 1 %).
+_SETTLE_TIME_CONSTANTS = 4.0
 
 
 @dataclass(frozen=True)
@@ -182,7 +186,8 @@ def estimate_hammerstein(
             input, or an order, delay or segment count out of range.
     """
     u, y = _checked_record(u, y, order, map_segments, input_delay_samples, sample_period_s)
-    problem = _Problem(u, y, order, map_segments, input_delay_samples, linear)
+    curves = None if linear else _settled_curves(u, y, order, input_delay_samples)
+    problem = _Problem(u, y, order, map_segments, input_delay_samples, linear, curves)
     units = {"input_unit": input_unit, "output_unit": output_unit}
     solution, start, failures, ends = None, None, [], []
     for guess in problem.initial_guesses():
@@ -241,6 +246,26 @@ def estimate_linear_arx(
     return problem.model(problem.initial_guesses()[0], sample_period_s, {})
 
 
+def _settled_curves(u, y, order, delay):
+    """The static curves of the settled holds (``settled_curve``), or None if too few settled.
+
+    A hold has settled ``_SETTLE_TIME_CONSTANTS`` time constants of the slowest pole of the
+    record's ARX model after it began.
+    """
+    slowest = float(np.max(np.abs(_Problem(u, y, order, 1, delay, linear=True).arx_poles())))
+    if not slowest < 1.0:
+        return None
+    settle = int(np.ceil(_SETTLE_TIME_CONSTANTS / -np.log(slowest)))
+    levels = settled_levels(u, y, settle, max(1, settle // 8))
+    parameters = 1 + 4 * u.shape[1]  # rest output; per valve two ends and two shape steps
+    if levels.outputs.size < 2 * parameters:
+        return None
+    curves = fit_static_curves(levels, _MAX_START, _MAX_SATURATION)
+    if curves is None or np.any(curves.gains() == 0.0):
+        return None
+    return curves
+
+
 def reflection_polynomial(reflections) -> np.ndarray:
     """a1..an of A(q) = 1 + a1 q^-1 + ... from reflection coefficients (the step-up recursion).
 
@@ -277,18 +302,30 @@ class _Problem:
     Currents are scaled to [0, 1] over each input's range in the data and the output to zero mean
     and unit spread, so one finite-difference step and one trust region suit every parameter. The
     vector is [rho (n); per input b_i (n), s_i, span_i, softmax logits (segments - 1); y_op]; a
-    linear model has no s, span or logits.
+    linear model has no s, span or logits. With ``curves`` (``settled_curve.StaticCurves``) each
+    map and DC gain is theirs, fixed: per input only b_i2..b_in, b_i1 making B_i(1) / A(1) the
+    curve's gain.
     """
 
-    def __init__(self, u, y, order, segments, delay, linear):
+    def __init__(self, u, y, order, segments, delay, linear, curves=None):
         self.order, self.segments, self.delay, self.linear = order, segments, delay, linear
         self.inputs = u.shape[1]
         self.u_low, self.u_range = u.min(axis=0), np.ptp(u, axis=0)
         self.y_mean, self.y_scale = float(y.mean()), float(np.std(y))
         self.u = (u - self.u_low) / self.u_range
         self.y = (y - self.y_mean) / self.y_scale
+        self.fixed_maps, self.fixed_gains = None, None
+        if curves is not None:
+            knots = [curves.map_knots(i) for i in range(self.inputs)]
+            self.fixed_maps = [
+                ((currents - self.u_low[i]) / self.u_range[i], openings)
+                for i, (currents, openings) in enumerate(knots)
+            ]
+            self.fixed_gains = curves.gains() / self.y_scale
         self.map_size = 0 if linear else 2 + (segments - 1)
         self.input_size = order + self.map_size
+        if curves is not None:
+            self.map_size, self.input_size = 0, order - 1
         self.size = order + self.inputs * self.input_size + 1
 
     # --- the parameter vector -------------------------------------------------------------------
@@ -300,6 +337,13 @@ class _Problem:
         b, maps = [], []
         for i in range(self.inputs):
             block = theta[n + i * self.input_size : n + (i + 1) * self.input_size]
+            if self.fixed_maps is not None:
+                tail = block[: n - 1]
+                b.append(
+                    np.concatenate([[self.fixed_gains[i] * (1.0 + a.sum()) - tail.sum()], tail])
+                )
+                maps.append(self.fixed_maps[i])
+                continue
             b.append(block[:n])
             maps.append(self._map(block[n:]))
         return np.tile(a, (self.inputs, 1)), np.array(b), maps, theta[-1]
@@ -351,7 +395,9 @@ class _Problem:
         (a plant whose time constants change with its level) has local minima, and the search
         from each ends in its own.
         """
-        grid = [(None,)] * self.inputs if self.linear else [_START_GRID] * self.inputs
+        grid = [_START_GRID] * self.inputs
+        if self.linear or self.fixed_maps is not None:
+            grid = [(None,)] * self.inputs
         scored = []
         for starts in itertools.product(*grid):
             theta = self._arx_start(starts)
@@ -367,8 +413,11 @@ class _Problem:
         """Per input, the (N, segments) hat-basis values of its map, and the map's knot layout."""
         columns, layouts = [], []
         for i, start in enumerate(starts):
-            if self.linear:
-                columns.append(self.u[:, [i]])
+            if self.linear or self.fixed_maps is not None:
+                column = self.u[:, [i]]
+                if self.fixed_maps is not None:
+                    column = np.interp(column, *self.fixed_maps[i])
+                columns.append(column)
                 layouts.append(None)
                 continue
             knots = start + (1.0 - start) * np.linspace(0.0, 1.0, self.segments + 1)
@@ -383,7 +432,7 @@ class _Problem:
     def _arx_start(self, starts, fallback=False):
         n, d = self.order, self.delay
         columns, layouts = self._basis(starts)
-        width = 1 if self.linear else self.segments
+        width = 1 if self.linear or self.fixed_maps is not None else self.segments
         if fallback:
             reflections = np.clip(polynomial_reflections(np.poly([0.9] * n)[1:]), -0.99, 0.99)
         else:
@@ -404,6 +453,11 @@ class _Problem:
         theta[:n] = np.arctanh(reflections)
         for i in range(self.inputs):
             block = np.zeros(self.input_size)
+            if self.fixed_maps is not None:
+                # b_i1 follows from the fixed gain: only the rest of the ARX's b_i is kept.
+                block[:] = 0.0 if fallback else solution[n + i * n + 1 : n + (i + 1) * n]
+                theta[n + i * self.input_size : n + (i + 1) * self.input_size] = block
+                continue
             if fallback:
                 gains, openings = np.zeros(n), np.linspace(0.0, 1.0, width + 1)
             else:
@@ -441,6 +495,13 @@ class _Problem:
         openings = np.concatenate([[0.0], np.maximum.accumulate(np.clip(v, 0.0, None))])
         openings = openings / openings[-1] if openings[-1] > 0 else np.linspace(0, 1, v.size + 1)
         return b, openings
+
+    def arx_poles(self) -> np.ndarray:
+        """The poles of the record's ARX model (the start of a linear fit)."""
+        theta = self.initial_guesses()[0]
+        return np.roots(
+            np.concatenate([[1.0], reflection_polynomial(np.tanh(theta[: self.order]))])
+        )
 
     # --- the result -----------------------------------------------------------------------------
 

@@ -58,6 +58,9 @@ def test_planted_curves_are_recovered_from_their_levels():
     for i, (start, saturation, *_) in enumerate(PLANTED_CURVES):
         assert curves.starts[i] == pytest.approx(start, abs=2e-3)
         assert curves.saturations[i] == pytest.approx(saturation, abs=2e-3)
+        # The 95 % profile interval holds the planted start and is as narrow as the noise.
+        low, high = curves.start_intervals[i]
+        assert low <= start <= high and high - low < 0.01
         truth = _planted_curve(grid, *PLANTED_CURVES[i])
         assert np.max(np.abs(curves.curve(i, grid) - truth)) < 0.02 * np.max(np.abs(truth))
     assert curves.rest_output == pytest.approx(rest, abs=2e-3)
@@ -97,3 +100,5 @@ def test_with_settled_holds_the_hammerstein_fit_finds_the_planted_curves_and_pol
         assert error < 0.02 * np.max(np.abs(truth))
     np.testing.assert_allclose(np.sort(model.poles().real), [0.8, 0.95], atol=5e-3)
     assert fit.simulation_fit_percent > 98.0
+    for (low, high), (start, *_) in zip(fit.starting_current_spread(), PLANTED_CURVES, strict=True):
+        assert low <= start <= high

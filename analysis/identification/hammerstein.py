@@ -92,6 +92,8 @@ class HammersteinFit:
             and the starting current of each valve it ended at; empty when none finished.
         highest_currents: per valve, the highest current of the estimation record: a saturation
             past it was never seen, only allowed.
+        start_intervals: per valve, the starting current's 95 % profile interval from the
+            settled holds (``settled_curve``), when the maps came from them; else empty.
     """
 
     model: HammersteinModel
@@ -102,14 +104,18 @@ class HammersteinFit:
     evaluations: int
     searches: tuple[tuple[float, tuple[float, ...]], ...] = ()
     highest_currents: tuple[float, ...] = ()
+    start_intervals: tuple[tuple[float, float], ...] = ()
 
     def starting_current_spread(self, tolerance: float = 0.01) -> list[tuple[float, float]]:
-        """Per valve, (lowest, highest) starting current of the searches that fit about as well.
+        """Per valve, (lowest, highest) starting current the record cannot tell apart.
 
-        Those whose final cost is within ``tolerance`` (a fraction) of the best: the record
-        cannot tell those starting currents apart. A valve whose curve leaves zero gently (the
-        pneumatic plant's lift grows with the square of the opening) is where they differ.
+        For maps from settled holds, ``start_intervals``. Otherwise the searches' ends whose
+        final cost is within ``tolerance`` (a fraction) of the best: a valve whose curve leaves
+        zero gently (the pneumatic plant's lift grows with the square of the opening) is where
+        they differ.
         """
+        if self.start_intervals:
+            return list(self.start_intervals)
         close = [starts for ratio, starts in self.searches if ratio <= 1.0 + tolerance]
         if not close:
             close = [tuple(m.starting_current for m in self.model.maps)]
@@ -230,7 +236,8 @@ def estimate_hammerstein(
         )
         for end in ends
     )
-    return dataclasses.replace(fit, searches=searches)
+    intervals = () if curves is None else tuple(map(tuple, curves.start_intervals.tolist()))
+    return dataclasses.replace(fit, searches=searches, start_intervals=intervals)
 
 
 def estimate_linear_arx(

@@ -21,6 +21,9 @@ Choices, and why:
   the curve's first slope; the grid is refined around its best point. Each valve's sign (does
   opening it raise or lower the output) is chosen by the same least squares, and the valves are
   fitted in turn, each with the others' curves held, for a few sweeps.
+- **What the levels cannot tell apart is reported**: each starting current's 95 % profile
+  interval, the starts whose best fit raises the sum of squares by at most chi2(1, 0.95) = 3.84
+  residual variances over the best (a likelihood-ratio interval for Gaussian errors).
 """
 
 from dataclasses import dataclass
@@ -34,6 +37,8 @@ _GRID_STEP = 1.0 / 80.0
 _REFINED_STEP = _GRID_STEP / 5.0
 # Passes over the valves, each fitted with the others' curves held.
 _SWEEPS = 3
+# The 95 % point of chi-squared with one degree of freedom: the profile interval's rise.
+_CHI2_95 = 3.841
 # Knots of the piecewise-linear map a curve is stored as (``ValveMap``): a quadratic sampled at
 # 16 pieces is within 1/1024 of its full value of the quadratic.
 MAP_PIECES = 16
@@ -54,7 +59,8 @@ class StaticCurves:
 
     Currents in the units of the levels they were fitted to; ``increments`` (inputs, 2) are the
     Bernstein coefficients' non-negative steps times the input's sign, so each curve's full value
-    (its DC gain) is their sum.
+    (its DC gain) is their sum; ``start_intervals`` (inputs, 2) the starting currents' 95 %
+    profile intervals.
     """
 
     starts: np.ndarray
@@ -62,6 +68,7 @@ class StaticCurves:
     increments: np.ndarray
     rest_output: float
     residual_rms: float
+    start_intervals: np.ndarray
 
     def curve(self, index: int, currents) -> np.ndarray:
         """The steady output change of input ``index`` from shut, at ``currents``."""
@@ -120,6 +127,11 @@ def fit_static_curves(levels: SettledLevels, max_start: float, max_saturation: f
             ends[i], signs[i] = _profile(x[:, i], y, held, max_start, max_saturation)
     columns = [_basis(x[:, i], *ends[i]) * signs[i] for i in range(inputs)]
     sse, coefficients = _nonnegative_fit(columns, y)
+    variance = sse / max(1, y.size - (1 + 4 * inputs))
+    intervals = [
+        _start_interval(x[:, i], y, columns[:i] + columns[i + 1 :], max_start, max_saturation)
+        for i in range(inputs)
+    ]
     increments = np.array(
         [signs[i] * coefficients[1 + 2 * i : 3 + 2 * i] for i in range(inputs)], dtype=float
     )
@@ -131,7 +143,36 @@ def fit_static_curves(levels: SettledLevels, max_start: float, max_saturation: f
         increments=increments,
         rest_output=float(coefficients[0] - coefficients[-1]),
         residual_rms=float(np.sqrt(sse / y.size)),
+        start_intervals=np.array(
+            [
+                low[i]
+                + span[i] * np.asarray(_within(intervals[i], sse + _CHI2_95 * variance, ends[i][0]))
+                for i in range(inputs)
+            ]
+        ),
     )
+
+
+def _start_interval(x, y, held, max_start, max_saturation):
+    """(starts on the coarse grid, the lowest sum of squares of each), the others' curves held."""
+    starts = np.arange(0.0, max_start + 1e-12, _GRID_STEP)
+    lowest = []
+    for start in starts:
+        saturations = np.arange(start + _GRID_STEP, max_saturation + 1e-12, _GRID_STEP)
+        best = _best_of(x, y, held, [(start, c) for c in saturations])
+        lowest.append(_nonnegative_fit([*held, _signed(x, *best)], y)[0])
+    return starts, np.array(lowest)
+
+
+def _within(profile, threshold, best_start):
+    """(lowest, highest) start with its profile within ``threshold``, or a step from the best.
+
+    The profile is known at the coarse grid's points only, so the best start's neighbours on
+    that grid are in the interval.
+    """
+    starts, lowest = profile
+    kept = np.append(starts[lowest <= threshold], best_start + np.array([-1.0, 1.0]) * _GRID_STEP)
+    return float(max(kept.min(), 0.0)), float(kept.max())
 
 
 def _profile(x, y, held, max_start, max_saturation):

@@ -55,6 +55,7 @@ def random_level_currents(
     hold_range_s: tuple[float, float],
     seed: int,
     arrangement: str = "split_range",
+    stratified: bool = True,
 ) -> np.ndarray:
     """(2, samples) inlet and outlet currents (A): random levels held for random times.
 
@@ -66,6 +67,8 @@ def random_level_currents(
             samples (``excitation.hold_samples``).
         seed: the random generator's seed (same seed, same signal).
         arrangement: one of ``ARRANGEMENTS`` (see the module docstring).
+        stratified: levels in blocks that visit every eighth of a valve's range (``_stratified``);
+            False: each level drawn independently (the earlier design, bit for bit).
 
     Raises:
         ValueError: naming the argument out of range.
@@ -78,13 +81,18 @@ def random_level_currents(
         raise ValueError(f"top_currents_a = {top_currents_a}: expected a positive current each")
     rng = np.random.default_rng(seed)
     holds = random_holds(rng, samples, hold_range_s, sample_period_s)
+    # Independent levels are drawn before the split, as the earlier design drew them.
     levels = np.zeros((holds.size, 2))
+    if not stratified:
+        levels = rng.uniform(0.0, 1.0, size=(holds.size, 2)) * np.asarray(top_currents_a)
     driven = np.ones((holds.size, 2), dtype=bool)
     if arrangement == "split_range":
         active = rng.integers(3, size=holds.size)  # the inlet, the outlet, or neither
         driven = np.column_stack([active == 0, active == 1])
     for valve, top in enumerate(top_currents_a):
-        levels[driven[:, valve], valve] = top * _stratified(rng, int(driven[:, valve].sum()))
+        if stratified:
+            levels[driven[:, valve], valve] = top * _stratified(rng, int(driven[:, valve].sum()))
+        levels[~driven[:, valve], valve] = 0.0
     return np.repeat(levels, holds, axis=0)[:samples].T
 
 

@@ -1,4 +1,4 @@
-"""Hammerstein identification: a monotone static map per valve, jointly with MISO linear dynamics.
+"""Hammerstein identification: a monotone static map per valve and MISO linear dynamics.
 
 The model is ``systems.hammerstein_model.HammersteinModel``: y = y_op + sum_i q^-d B_i/A_i f_i(u_i).
 Here every A_i is one A(q): one bladder moves one head, and a shared denominator halves the
@@ -6,6 +6,15 @@ dynamics' parameters the valve maps trade off against.
 
 Choices, and why:
 
+- **Two stages where the record allows**: when enough holds (runs of unchanged currents) last
+  past the settling time (``_SETTLE_TIME_CONSTANTS`` time constants of the slowest pole of the
+  record's ARX model), each valve's static curve comes from their settled ends first
+  (``settled_curve``: the map and its DC gain, the starting current profiled over a grid), and
+  the search fits only the dynamics, with B_i(1) / A(1) held at the curve's gain. In one joint
+  search the maps absorb what a linear model of a plant whose time constants change with its
+  level gets wrong in the transients, and the starting current trades off against the map's
+  first pieces; on the pneumatic plant that put starting currents 0-60 mA off. A record without
+  settled holds (levels shorter than the plant settles) gets the joint search below.
 - **The map is piecewise linear on knots**, spread evenly between an explicit starting current
   s_i (flat at 0 below) and saturation current c_i (flat at 1 above). A valve's physics has exactly
   those two kinks (its opening is clamped there), which a smooth basis would round off and a
@@ -23,9 +32,10 @@ Choices, and why:
   cameras' noise is and the static curve is not.
 - **A(q) is stable by construction**: it is built from reflection coefficients tanh(rho_j), each
   in (-1, 1) (the Schur-Cohn step-up recursion), so the simulation never explodes mid-search.
-- **The start**: for each pair of starting currents on a grid, the overparameterised ARX (each
-  lagged input expanded in the map's hat basis, linear least squares) split into B_i and f_i by a
-  rank-one SVD (Bai 1998); the few grid points whose models simulate best each start
+- **The joint search's start**: for each pair of starting currents on a grid, the
+  overparameterised ARX (each lagged input expanded in the map's hat basis, linear least squares)
+  split into B_i and f_i by a rank-one SVD (Bai 1998); the few grid points whose models simulate
+  best each start
   ``scipy.optimize.least_squares`` (Levenberg-Marquardt), and the lowest cost found is kept.
   s_i is a logistic function of its parameter and c_i one between s_i and past the data, so both
   stay in range with no bounds.

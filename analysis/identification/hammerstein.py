@@ -202,8 +202,8 @@ def estimate_hammerstein(
             input, or an order, delay or segment count out of range.
     """
     u, y = _checked_record(u, y, order, map_segments, input_delay_samples, sample_period_s)
-    curves = None if linear else _settled_curves(u, y, order, input_delay_samples)
-    problem = _Problem(u, y, order, map_segments, input_delay_samples, linear, curves)
+    curves, slowest = (None, None) if linear else _settled_curves(u, y, order, input_delay_samples)
+    problem = _Problem(u, y, order, map_segments, input_delay_samples, linear, curves, slowest)
     units = {"input_unit": input_unit, "output_unit": output_unit}
     solution, start, failures, ends = None, None, [], []
     for guess in problem.initial_guesses():
@@ -264,23 +264,23 @@ def estimate_linear_arx(
 
 
 def _settled_curves(u, y, order, delay):
-    """The static curves of the settled holds (``settled_curve``), or None if too few settled.
+    """(the static curves of the settled holds (``settled_curve``), the slowest pole's radius).
 
     A hold has settled ``_SETTLE_TIME_CONSTANTS`` time constants of the slowest pole of the
-    record's ARX model after it began.
+    record's ARX model after it began. (None, None) if too few holds settled.
     """
     slowest = float(np.max(np.abs(_Problem(u, y, order, 1, delay, linear=True).arx_poles())))
     if not slowest < 1.0:
-        return None
+        return None, None
     settle = int(np.ceil(_SETTLE_TIME_CONSTANTS / -np.log(slowest)))
     levels = settled_levels(u, y, settle, max(1, settle // 8))
     parameters = 1 + 4 * u.shape[1]  # rest output; per valve two ends and two shape steps
     if levels.outputs.size < 2 * parameters:
-        return None
+        return None, None
     curves = fit_static_curves(levels, _MAX_START, _MAX_SATURATION)
     if curves is None or np.any(curves.gains() == 0.0):
-        return None
-    return curves
+        return None, None
+    return curves, slowest
 
 
 def reflection_polynomial(reflections) -> np.ndarray:
@@ -321,10 +321,13 @@ class _Problem:
     vector is [rho (n); per input b_i (n), s_i, span_i, softmax logits (segments - 1); y_op]; a
     linear model has no s, span or logits. With ``curves`` (``settled_curve.StaticCurves``) each
     map and DC gain is theirs, fixed: per input only b_i2..b_in, b_i1 making B_i(1) / A(1) the
-    curve's gain.
+    curve's gain. ``pole_radius`` bounds A(q)'s poles: with the curves fixed, the search otherwise
+    puts a pole within 1e-5 of 1 with a zero all but cancelling it, a slow drift no design can
+    use; the curves assume the plant settles as the record's ARX model's slowest pole does, so
+    the dynamics get no slower pole.
     """
 
-    def __init__(self, u, y, order, segments, delay, linear, curves=None):
+    def __init__(self, u, y, order, segments, delay, linear, curves=None, pole_radius=None):
         self.order, self.segments, self.delay, self.linear = order, segments, delay, linear
         self.inputs = u.shape[1]
         self.u_low, self.u_range = u.min(axis=0), np.ptp(u, axis=0)
@@ -332,6 +335,8 @@ class _Problem:
         self.u = (u - self.u_low) / self.u_range
         self.y = (y - self.y_mean) / self.y_scale
         self.fixed_maps, self.fixed_gains = None, None
+        # A(q)'s coefficients scale by radius^k: every pole within the radius.
+        self.pole_scales = (pole_radius or 1.0) ** np.arange(1, order + 1)
         if curves is not None:
             knots = [curves.map_knots(i) for i in range(self.inputs)]
             self.fixed_maps = [
@@ -350,7 +355,7 @@ class _Problem:
     def unpack(self, theta):
         """(a (inputs, n), b (inputs, n), [(knots, openings) per input], y_op), normalised."""
         n = self.order
-        a = reflection_polynomial(np.tanh(theta[:n]))
+        a = reflection_polynomial(np.tanh(theta[:n])) * self.pole_scales
         b, maps = [], []
         for i in range(self.inputs):
             block = theta[n + i * self.input_size : n + (i + 1) * self.input_size]
@@ -465,7 +470,7 @@ class _Problem:
             # The normal equations: a few dozen columns, and a Gram matrix is one product where a
             # tall QR or SVD is many (and slow when BLAS threads compete for cores).
             solution, *_ = np.linalg.lstsq(matrix.T @ matrix, matrix.T @ self.y[lag:], rcond=None)
-            reflections = polynomial_reflections(solution[:n])
+            reflections = polynomial_reflections(solution[:n] / self.pole_scales)
         theta = np.zeros(self.size)
         theta[:n] = np.arctanh(reflections)
         for i in range(self.inputs):
@@ -516,9 +521,7 @@ class _Problem:
     def arx_poles(self) -> np.ndarray:
         """The poles of the record's ARX model (the start of a linear fit)."""
         theta = self.initial_guesses()[0]
-        return np.roots(
-            np.concatenate([[1.0], reflection_polynomial(np.tanh(theta[: self.order]))])
-        )
+        return np.roots(np.concatenate([[1.0], self.unpack(theta)[0][0]]))
 
     # --- the result -----------------------------------------------------------------------------
 

@@ -166,8 +166,8 @@ def format_hammerstein_report(report: dict) -> str:
             )
             lines.append(
                 f"    {name}: starts at {1e3 * valve['starting_current']:.1f} mA "
-                f"(searches as good: {1e3 * low:.1f}-{1e3 * high:.1f} mA), {saturation}, full "
-                f"opening moves the head {1e3 * valve['dc_gain']:.2f} mm"
+                f"(the record cannot tell apart {1e3 * low:.1f}-{1e3 * high:.1f} mA), "
+                f"{saturation}, full opening moves the head {1e3 * valve['dc_gain']:.2f} mm"
             )
         lines.append(f"    model file: {model['model_file']}")
     lines.append(f"  plot: {report['plot']}")

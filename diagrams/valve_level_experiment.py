@@ -9,9 +9,10 @@ draws its own (``excitation.random_holds``).
 
 The design knows only what a valve's datasheet states, its whole current range (0 to ``top``,
 past the largest rated current to show the flat top): never the starting current the fit is to
-find. Uniform levels are the design that favours no guess of it; an hour's record puts a dozen
-holds of the inlet on each tenth of its range, so the gently rising stretch after the start is
-seen at several levels.
+find. Uniform levels are the design that favours no guess of it. They are stratified: each
+valve's levels come in blocks of eight, one from each eighth of its range in random order, so
+an hour (some 37 levels per valve in a split range, about half of them held long enough to
+settle) leaves no stretch of the curve unvisited, as independent draws often do.
 
 Two arrangements:
 
@@ -43,6 +44,8 @@ from maskless.diagrams.simulation import SimulationRun, simulate_loop
 from maskless.systems.control.excitation import ExcitationSignal, random_holds
 
 ARRANGEMENTS = ("split_range", "independent")
+# Equal parts of a valve's range that each block of its levels visits once (``_stratified``).
+_STRATA = 8
 
 
 def random_level_currents(
@@ -52,6 +55,7 @@ def random_level_currents(
     hold_range_s: tuple[float, float],
     seed: int,
     arrangement: str = "split_range",
+    stratified: bool = True,
 ) -> np.ndarray:
     """(2, samples) inlet and outlet currents (A): random levels held for random times.
 
@@ -63,6 +67,8 @@ def random_level_currents(
             samples (``excitation.hold_samples``).
         seed: the random generator's seed (same seed, same signal).
         arrangement: one of ``ARRANGEMENTS`` (see the module docstring).
+        stratified: levels in blocks that visit every eighth of a valve's range (``_stratified``);
+            False: each level drawn independently (the earlier design, bit for bit).
 
     Raises:
         ValueError: naming the argument out of range.
@@ -75,12 +81,31 @@ def random_level_currents(
         raise ValueError(f"top_currents_a = {top_currents_a}: expected a positive current each")
     rng = np.random.default_rng(seed)
     holds = random_holds(rng, samples, hold_range_s, sample_period_s)
-    levels = rng.uniform(0.0, 1.0, size=(holds.size, 2)) * np.asarray(top_currents_a)
+    # Independent levels are drawn before the split, as the earlier design drew them.
+    levels = np.zeros((holds.size, 2))
+    if not stratified:
+        levels = rng.uniform(0.0, 1.0, size=(holds.size, 2)) * np.asarray(top_currents_a)
+    driven = np.ones((holds.size, 2), dtype=bool)
     if arrangement == "split_range":
         active = rng.integers(3, size=holds.size)  # the inlet, the outlet, or neither
-        levels[active != 0, 0] = 0.0
-        levels[active != 1, 1] = 0.0
+        driven = np.column_stack([active == 0, active == 1])
+    for valve, top in enumerate(top_currents_a):
+        if stratified:
+            levels[driven[:, valve], valve] = top * _stratified(rng, int(driven[:, valve].sum()))
+        levels[~driven[:, valve], valve] = 0.0
     return np.repeat(levels, holds, axis=0)[:samples].T
+
+
+def _stratified(rng, count: int) -> np.ndarray:
+    """``count`` fractions of the range, uniform, in blocks that each visit every stratum once.
+
+    Each block of ``_STRATA`` levels is one uniform draw from each of ``_STRATA`` equal parts of
+    the range, in random order: i.i.d. levels leave gaps (a dozen settled levels of a valve can
+    miss a fifth of its range), and a gap is where the static curve is only guessed.
+    """
+    blocks = -(-count // _STRATA)
+    order = np.concatenate([rng.permutation(_STRATA) for _ in range(blocks)])[:count]
+    return (order + rng.uniform(0.0, 1.0, size=count)) / _STRATA
 
 
 def run_two_valve_experiment(

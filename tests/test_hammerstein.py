@@ -48,7 +48,11 @@ PLANTED = HammersteinModel(
 
 
 def _planted_record(samples=3000, noise_m=1e-4, seed=3):
-    currents = random_level_currents(samples, TS, (0.19, 0.19), (0.5, 4.0), seed)
+    # Independent levels: the record this test was written on. The joint search (these holds are
+    # too short to settle) finds both planted starting currents within 1.5 mA on seeds 3 and 5
+    # of 0-7 of this record (1 of 8 with stratified levels); on the others it misses one by
+    # 6-50 mA at 98.7-99.8 % fit: a known weakness of the joint search, not asserted away.
+    currents = random_level_currents(samples, TS, (0.19, 0.19), (0.5, 4.0), seed, stratified=False)
     u = currents.T
     rng = np.random.default_rng(seed)
     return u, PLANTED.simulate(u) + noise_m * rng.standard_normal(samples)
@@ -218,13 +222,12 @@ def test_a_bad_model_is_refused_naming_the_field(change, message):
 
 # --- the pneumatic plant ---------------------------------------------------------------------
 
-# The record of benchmarks/hammerstein.py (its defaults: an hour, levels held 5-60 s, seed 0; the
-# design reads no starting current, the idle valve is shut), where it measured (currents in mA): a
-# static-curve error of 10.4 % of full scale for the inlet and 37.5 points of held-out simulation
-# fit over the best linear model, but the inlet's starting current at 0 mA (the plant's: 60 mA).
-# The lift grows with the square of the opening, so the curve leaves zero too gently to pin its
-# start; issue 14's 5 mA target is not met, and no bound on the start is asserted here. An hour is
-# the shortest record that puts some twenty levels above the start.
+# The record of benchmarks/hammerstein.py (its defaults: an hour, stratified levels held 5-60 s,
+# seed 0; the design reads no starting current, the idle valve is shut), where it measured
+# (currents in mA): the inlet's static curve within 6.2 % of full scale, its starting current at
+# 63.0 (the plant's: 60), and 26.5 points of held-out simulation fit over the best linear model.
+# The two-stage fit reads the curve from the holds that settled; an hour is the shortest record
+# that puts some fifteen settled levels on each valve.
 PNEUMATIC_DURATION_S = 3600.0
 
 
@@ -247,7 +250,14 @@ def test_on_the_pneumatic_plant_the_inlet_curve_is_found_and_beats_linear_models
     working = np.linspace(p.inlet.starting_current_a, p.inlet.saturation_current_a, 50)
     truth = [equilibrium_state(p, i, 0.0)[LIFT] for i in working]
     error = np.max(np.abs(model.static_curve(0, working) - truth))
-    assert error < 0.15 * np.max(truth)
+    assert error < 0.10 * np.max(truth)  # issue 14's target
+    assert model.maps[0].starting_current == pytest.approx(p.inlet.starting_current_a, abs=5e-3)
+    low, high = fit.starting_current_spread()[0]
+    assert low <= p.inlet.starting_current_a <= high
+    # No pole next to 1: with the curves fixed, the search once put one at 0.9999 with a zero all
+    # but cancelling it (a slow drift the offset-free design creeps on, or refuses).
+    assert np.max(np.abs(model.poles())) < 0.995
+    assert model.valve_linear_model(0).dc_gain() == pytest.approx(1.0)
     hammerstein = fit_percent(y[split:], model.simulate(u[split:]))
     linear = estimate_hammerstein(u[:split], y[:split], 2, period_s, linear=True).model
     assert hammerstein > fit_percent(y[split:], linear.simulate(u[split:])) + 25.0

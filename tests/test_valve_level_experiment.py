@@ -39,6 +39,19 @@ def test_split_range_drives_one_valve_at_a_time_and_shuts_the_other():
     assert np.mean((independent[0] > 0.06) & (independent[1] > 0.06)) > 0.3
 
 
+@pytest.mark.parametrize("arrangement", ["split_range", "independent"])
+def test_each_block_of_eight_levels_visits_every_eighth_of_the_range(arrangement):
+    currents = _levels(arrangement)
+    for row, top in zip(currents, TOPS, strict=True):
+        starts = np.flatnonzero(np.diff(np.r_[-1.0, row]) != 0.0)
+        driven = row[starts][row[starts] > 0.0]
+        eighths = np.floor(driven / top * 8).astype(int)
+        blocks = eighths[: eighths.size // 8 * 8].reshape(-1, 8)
+        assert blocks.shape[0] >= 10
+        for block in blocks:
+            np.testing.assert_array_equal(np.sort(block), np.arange(8))
+
+
 def test_holds_are_drawn_as_the_multilevel_design_draws_them():
     # One generator: the holds first (excitation.random_holds), then the levels.
     # Independent levels are continuous, so every hold ends in a change of both currents.

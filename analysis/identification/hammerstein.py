@@ -1,4 +1,4 @@
-"""Hammerstein identification: a monotone static map per valve, jointly with MISO linear dynamics.
+"""Hammerstein identification: a monotone static map per valve and MISO linear dynamics.
 
 The model is ``systems.hammerstein_model.HammersteinModel``: y = y_op + sum_i q^-d B_i/A_i f_i(u_i).
 Here every A_i is one A(q): one bladder moves one head, and a shared denominator halves the
@@ -6,6 +6,15 @@ dynamics' parameters the valve maps trade off against.
 
 Choices, and why:
 
+- **Two stages where the record allows**: when enough holds (runs of unchanged currents) last
+  past the settling time (``_SETTLE_TIME_CONSTANTS`` time constants of the slowest pole of the
+  record's ARX model), each valve's static curve comes from their settled ends first
+  (``settled_curve``: the map and its DC gain, the starting current profiled over a grid), and
+  the search fits only the dynamics, with B_i(1) / A(1) held at the curve's gain. In one joint
+  search the maps absorb what a linear model of a plant whose time constants change with its
+  level gets wrong in the transients, and the starting current trades off against the map's
+  first pieces; on the pneumatic plant that put starting currents 0-60 mA off. A record without
+  settled holds (levels shorter than the plant settles) gets the joint search below.
 - **The map is piecewise linear on knots**, spread evenly between an explicit starting current
   s_i (flat at 0 below) and saturation current c_i (flat at 1 above). A valve's physics has exactly
   those two kinks (its opening is clamped there), which a smooth basis would round off and a
@@ -23,9 +32,10 @@ Choices, and why:
   cameras' noise is and the static curve is not.
 - **A(q) is stable by construction**: it is built from reflection coefficients tanh(rho_j), each
   in (-1, 1) (the Schur-Cohn step-up recursion), so the simulation never explodes mid-search.
-- **The start**: for each pair of starting currents on a grid, the overparameterised ARX (each
-  lagged input expanded in the map's hat basis, linear least squares) split into B_i and f_i by a
-  rank-one SVD (Bai 1998); the few grid points whose models simulate best each start
+- **The joint search's start**: for each pair of starting currents on a grid, the
+  overparameterised ARX (each lagged input expanded in the map's hat basis, linear least squares)
+  split into B_i and f_i by a rank-one SVD (Bai 1998); the few grid points whose models simulate
+  best each start
   ``scipy.optimize.least_squares`` (Levenberg-Marquardt), and the lowest cost found is kept.
   s_i is a logistic function of its parameter and c_i one between s_i and past the data, so both
   stay in range with no bounds.
@@ -43,6 +53,7 @@ import scipy.optimize
 import scipy.signal
 
 from maskless.analysis.identification.fit_metrics import fit_percent
+from maskless.analysis.identification.settled_curve import fit_static_curves, settled_levels
 from maskless.errors import ModelError
 from maskless.systems.hammerstein_model import HammersteinModel
 from maskless.systems.plant.valve_map import ValveMap
@@ -70,6 +81,9 @@ _LINEAR_MAP_WIDTH = 21.0
 _FLAT = 1e-3
 # Reflection coefficients are kept within this of +-1, so tanh's inverse stays finite.
 _REFLECTION_LIMIT = 1.0 - 1e-9
+# A hold has settled this many time constants of the slowest pole after it began: e^-4, 2 % of
+# its step, left (the tail's mean then carries less than 1 %).
+_SETTLE_TIME_CONSTANTS = 4.0
 
 
 @dataclass(frozen=True)
@@ -88,6 +102,8 @@ class HammersteinFit:
             and the starting current of each valve it ended at; empty when none finished.
         highest_currents: per valve, the highest current of the estimation record: a saturation
             past it was never seen, only allowed.
+        start_intervals: per valve, the starting current's 95 % profile interval from the
+            settled holds (``settled_curve``), when the maps came from them; else empty.
     """
 
     model: HammersteinModel
@@ -98,14 +114,18 @@ class HammersteinFit:
     evaluations: int
     searches: tuple[tuple[float, tuple[float, ...]], ...] = ()
     highest_currents: tuple[float, ...] = ()
+    start_intervals: tuple[tuple[float, float], ...] = ()
 
     def starting_current_spread(self, tolerance: float = 0.01) -> list[tuple[float, float]]:
-        """Per valve, (lowest, highest) starting current of the searches that fit about as well.
+        """Per valve, (lowest, highest) starting current the record cannot tell apart.
 
-        Those whose final cost is within ``tolerance`` (a fraction) of the best: the record
-        cannot tell those starting currents apart. A valve whose curve leaves zero gently (the
-        pneumatic plant's lift grows with the square of the opening) is where they differ.
+        For maps from settled holds, ``start_intervals``. Otherwise the searches' ends whose
+        final cost is within ``tolerance`` (a fraction) of the best: a valve whose curve leaves
+        zero gently (the pneumatic plant's lift grows with the square of the opening) is where
+        they differ.
         """
+        if self.start_intervals:
+            return list(self.start_intervals)
         close = [starts for ratio, starts in self.searches if ratio <= 1.0 + tolerance]
         if not close:
             close = [tuple(m.starting_current for m in self.model.maps)]
@@ -182,7 +202,8 @@ def estimate_hammerstein(
             input, or an order, delay or segment count out of range.
     """
     u, y = _checked_record(u, y, order, map_segments, input_delay_samples, sample_period_s)
-    problem = _Problem(u, y, order, map_segments, input_delay_samples, linear)
+    curves, slowest = (None, None) if linear else _settled_curves(u, y, order, input_delay_samples)
+    problem = _Problem(u, y, order, map_segments, input_delay_samples, linear, curves, slowest)
     units = {"input_unit": input_unit, "output_unit": output_unit}
     solution, start, failures, ends = None, None, [], []
     for guess in problem.initial_guesses():
@@ -225,7 +246,8 @@ def estimate_hammerstein(
         )
         for end in ends
     )
-    return dataclasses.replace(fit, searches=searches)
+    intervals = () if curves is None else tuple(map(tuple, curves.start_intervals.tolist()))
+    return dataclasses.replace(fit, searches=searches, start_intervals=intervals)
 
 
 def estimate_linear_arx(
@@ -239,6 +261,26 @@ def estimate_linear_arx(
     u, y = _checked_record(u, y, order, 1, input_delay_samples, sample_period_s)
     problem = _Problem(u, y, order, 1, input_delay_samples, linear=True)
     return problem.model(problem.initial_guesses()[0], sample_period_s, {})
+
+
+def _settled_curves(u, y, order, delay):
+    """(the static curves of the settled holds (``settled_curve``), the slowest pole's radius).
+
+    A hold has settled ``_SETTLE_TIME_CONSTANTS`` time constants of the slowest pole of the
+    record's ARX model after it began. (None, None) if too few holds settled.
+    """
+    slowest = float(np.max(np.abs(_Problem(u, y, order, 1, delay, linear=True).arx_poles())))
+    if not slowest < 1.0:
+        return None, None
+    settle = int(np.ceil(_SETTLE_TIME_CONSTANTS / -np.log(slowest)))
+    levels = settled_levels(u, y, settle, max(1, settle // 8))
+    parameters = 1 + 4 * u.shape[1]  # rest output; per valve two ends and two shape steps
+    if levels.outputs.size < 2 * parameters:
+        return None, None
+    curves = fit_static_curves(levels, _MAX_START, _MAX_SATURATION)
+    if curves is None or np.any(curves.gains() == 0.0):
+        return None, None
+    return curves, slowest
 
 
 def reflection_polynomial(reflections) -> np.ndarray:
@@ -277,18 +319,35 @@ class _Problem:
     Currents are scaled to [0, 1] over each input's range in the data and the output to zero mean
     and unit spread, so one finite-difference step and one trust region suit every parameter. The
     vector is [rho (n); per input b_i (n), s_i, span_i, softmax logits (segments - 1); y_op]; a
-    linear model has no s, span or logits.
+    linear model has no s, span or logits. With ``curves`` (``settled_curve.StaticCurves``) each
+    map and DC gain is theirs, fixed: per input only b_i2..b_in, b_i1 making B_i(1) / A(1) the
+    curve's gain. ``pole_radius`` bounds A(q)'s poles: with the curves fixed, the search otherwise
+    puts a pole within 1e-5 of 1 with a zero all but cancelling it, a slow drift no design can
+    use; the curves assume the plant settles as the record's ARX model's slowest pole does, so
+    the dynamics get no slower pole.
     """
 
-    def __init__(self, u, y, order, segments, delay, linear):
+    def __init__(self, u, y, order, segments, delay, linear, curves=None, pole_radius=None):
         self.order, self.segments, self.delay, self.linear = order, segments, delay, linear
         self.inputs = u.shape[1]
         self.u_low, self.u_range = u.min(axis=0), np.ptp(u, axis=0)
         self.y_mean, self.y_scale = float(y.mean()), float(np.std(y))
         self.u = (u - self.u_low) / self.u_range
         self.y = (y - self.y_mean) / self.y_scale
+        self.fixed_maps, self.fixed_gains = None, None
+        # A(q)'s coefficients scale by radius^k: every pole within the radius.
+        self.pole_scales = (pole_radius or 1.0) ** np.arange(1, order + 1)
+        if curves is not None:
+            knots = [curves.map_knots(i) for i in range(self.inputs)]
+            self.fixed_maps = [
+                ((currents - self.u_low[i]) / self.u_range[i], openings)
+                for i, (currents, openings) in enumerate(knots)
+            ]
+            self.fixed_gains = curves.gains() / self.y_scale
         self.map_size = 0 if linear else 2 + (segments - 1)
         self.input_size = order + self.map_size
+        if curves is not None:
+            self.map_size, self.input_size = 0, order - 1
         self.size = order + self.inputs * self.input_size + 1
 
     # --- the parameter vector -------------------------------------------------------------------
@@ -296,10 +355,17 @@ class _Problem:
     def unpack(self, theta):
         """(a (inputs, n), b (inputs, n), [(knots, openings) per input], y_op), normalised."""
         n = self.order
-        a = reflection_polynomial(np.tanh(theta[:n]))
+        a = reflection_polynomial(np.tanh(theta[:n])) * self.pole_scales
         b, maps = [], []
         for i in range(self.inputs):
             block = theta[n + i * self.input_size : n + (i + 1) * self.input_size]
+            if self.fixed_maps is not None:
+                tail = block[: n - 1]
+                b.append(
+                    np.concatenate([[self.fixed_gains[i] * (1.0 + a.sum()) - tail.sum()], tail])
+                )
+                maps.append(self.fixed_maps[i])
+                continue
             b.append(block[:n])
             maps.append(self._map(block[n:]))
         return np.tile(a, (self.inputs, 1)), np.array(b), maps, theta[-1]
@@ -351,7 +417,9 @@ class _Problem:
         (a plant whose time constants change with its level) has local minima, and the search
         from each ends in its own.
         """
-        grid = [(None,)] * self.inputs if self.linear else [_START_GRID] * self.inputs
+        grid = [_START_GRID] * self.inputs
+        if self.linear or self.fixed_maps is not None:
+            grid = [(None,)] * self.inputs
         scored = []
         for starts in itertools.product(*grid):
             theta = self._arx_start(starts)
@@ -367,8 +435,11 @@ class _Problem:
         """Per input, the (N, segments) hat-basis values of its map, and the map's knot layout."""
         columns, layouts = [], []
         for i, start in enumerate(starts):
-            if self.linear:
-                columns.append(self.u[:, [i]])
+            if self.linear or self.fixed_maps is not None:
+                column = self.u[:, [i]]
+                if self.fixed_maps is not None:
+                    column = np.interp(column, *self.fixed_maps[i])
+                columns.append(column)
                 layouts.append(None)
                 continue
             knots = start + (1.0 - start) * np.linspace(0.0, 1.0, self.segments + 1)
@@ -383,7 +454,7 @@ class _Problem:
     def _arx_start(self, starts, fallback=False):
         n, d = self.order, self.delay
         columns, layouts = self._basis(starts)
-        width = 1 if self.linear else self.segments
+        width = 1 if self.linear or self.fixed_maps is not None else self.segments
         if fallback:
             reflections = np.clip(polynomial_reflections(np.poly([0.9] * n)[1:]), -0.99, 0.99)
         else:
@@ -399,11 +470,16 @@ class _Problem:
             # The normal equations: a few dozen columns, and a Gram matrix is one product where a
             # tall QR or SVD is many (and slow when BLAS threads compete for cores).
             solution, *_ = np.linalg.lstsq(matrix.T @ matrix, matrix.T @ self.y[lag:], rcond=None)
-            reflections = polynomial_reflections(solution[:n])
+            reflections = polynomial_reflections(solution[:n] / self.pole_scales)
         theta = np.zeros(self.size)
         theta[:n] = np.arctanh(reflections)
         for i in range(self.inputs):
             block = np.zeros(self.input_size)
+            if self.fixed_maps is not None:
+                # b_i1 follows from the fixed gain: only the rest of the ARX's b_i is kept.
+                block[:] = 0.0 if fallback else solution[n + i * n + 1 : n + (i + 1) * n]
+                theta[n + i * self.input_size : n + (i + 1) * self.input_size] = block
+                continue
             if fallback:
                 gains, openings = np.zeros(n), np.linspace(0.0, 1.0, width + 1)
             else:
@@ -441,6 +517,11 @@ class _Problem:
         openings = np.concatenate([[0.0], np.maximum.accumulate(np.clip(v, 0.0, None))])
         openings = openings / openings[-1] if openings[-1] > 0 else np.linspace(0, 1, v.size + 1)
         return b, openings
+
+    def arx_poles(self) -> np.ndarray:
+        """The poles of the record's ARX model (the start of a linear fit)."""
+        theta = self.initial_guesses()[0]
+        return np.roots(np.concatenate([[1.0], self.unpack(theta)[0][0]]))
 
     # --- the result -----------------------------------------------------------------------------
 

@@ -1,0 +1,224 @@
+"""Each valve's static curve from the settled ends of held levels: stage one of a Hammerstein fit.
+
+A level held past the plant's settling time shows one point of the static curves directly: the
+mean output over the rest of the hold is the rest output plus each valve's steady effect at its
+current, with no dynamics to model. ``analysis.identification.hammerstein`` fits the curves from
+those points first and the dynamics after, with the curves fixed: a joint prediction-error search
+lets the maps absorb what a linear model of a plant whose time constants change with its level
+gets wrong in the transients, and its starting current trades off against the map's first pieces.
+
+Choices, and why:
+
+- **The curve above the starting current s is a monotone quadratic in t = (u - s) / (c - s)**
+  (the degree-2 Bernstein polynomial with non-decreasing coefficients), flat at 0 below s and at
+  its full value from the saturation current c on. Two shape parameters: a hold a valve is driven
+  at gives one point, an hour's record some dozen settled ones per valve, so a flexible shape
+  would follow the noise. It leaves s with any slope from 0 (a quadratic start) up, and covers
+  a valve whose effect grows gently and then fast (a bladder's lift: choked flow in against a
+  leak out) or linearly.
+- **s and c are profiled over a grid**, the shape's coefficients fitted by non-negative least
+  squares at each grid point, so no local search can wander along the trade-off between s and
+  the curve's first slope; the grid is refined around its best point. Each valve's sign (does
+  opening it raise or lower the output) is chosen by the same least squares, and the valves are
+  fitted in turn, each with the others' curves held, for a few sweeps.
+- **What the levels cannot tell apart is reported**: each starting current's 95 % profile
+  interval, the starts whose best fit raises the sum of squares by at most chi2(1, 0.95) = 3.84
+  residual variances over the best (a likelihood-ratio interval for Gaussian errors).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.optimize
+
+# The grid's step for the starting and saturation currents, as a fraction of each input's range,
+# and the step of the refinement around the coarse grid's best point.
+_GRID_STEP = 1.0 / 80.0
+_REFINED_STEP = _GRID_STEP / 5.0
+# Passes over the valves, each fitted with the others' curves held.
+_SWEEPS = 3
+# The 95 % point of chi-squared with one degree of freedom: the profile interval's rise.
+_CHI2_95 = 3.841
+# Knots of the piecewise-linear map a curve is stored as (``ValveMap``): a quadratic sampled at
+# 16 pieces is within 1/1024 of its full value of the quadratic.
+MAP_PIECES = 16
+
+
+@dataclass(frozen=True)
+class SettledLevels:
+    """The holds that settled: (M, inputs) currents, (M,) mean outputs, (M,) samples averaged."""
+
+    currents: np.ndarray
+    outputs: np.ndarray
+    samples: np.ndarray
+
+
+@dataclass(frozen=True)
+class StaticCurves:
+    """Per input its starting and saturation current and shape; the rest output.
+
+    Currents in the units of the levels they were fitted to; ``increments`` (inputs, 2) are the
+    Bernstein coefficients' non-negative steps times the input's sign, so each curve's full value
+    (its DC gain) is their sum; ``start_intervals`` (inputs, 2) the starting currents' 95 %
+    profile intervals.
+    """
+
+    starts: np.ndarray
+    saturations: np.ndarray
+    increments: np.ndarray
+    rest_output: float
+    residual_rms: float
+    start_intervals: np.ndarray
+
+    def curve(self, index: int, currents) -> np.ndarray:
+        """The steady output change of input ``index`` from shut, at ``currents``."""
+        basis = _basis(np.asarray(currents, float), self.starts[index], self.saturations[index])
+        return basis @ self.increments[index]
+
+    def gains(self) -> np.ndarray:
+        """Per input, the steady output change from shut to saturation."""
+        return self.increments.sum(axis=1)
+
+    def map_knots(self, index: int) -> tuple[np.ndarray, np.ndarray]:
+        """(currents, openings): the curve over its gain at ``MAP_PIECES`` + 1 knots, 0 to 1."""
+        currents = np.linspace(self.starts[index], self.saturations[index], MAP_PIECES + 1)
+        openings = self.curve(index, currents) / self.gains()[index]
+        openings[0], openings[-1] = 0.0, 1.0
+        return currents, np.maximum.accumulate(np.clip(openings, 0.0, 1.0))
+
+
+def settled_levels(u, y, settle_samples: int, min_tail_samples: int) -> SettledLevels:
+    """Each hold (a run of unchanged currents) longer than ``settle_samples + min_tail_samples``.
+
+    Its mean output from ``settle_samples`` after it began to its end.
+    """
+    change = np.flatnonzero(np.any(np.diff(u, axis=0) != 0.0, axis=1)) + 1
+    starts = np.concatenate([[0], change])
+    ends = np.concatenate([change, [u.shape[0]]])
+    kept = [(a, b) for a, b in zip(starts, ends, strict=True) if b - a >= settle_samples + 1]
+    kept = [(a, b) for a, b in kept if b - a - settle_samples >= min_tail_samples]
+    return SettledLevels(
+        currents=np.array([u[a] for a, _ in kept]).reshape(len(kept), u.shape[1]),
+        outputs=np.array([y[a + settle_samples : b].mean() for a, b in kept]),
+        samples=np.array([b - a - settle_samples for a, b in kept], dtype=int),
+    )
+
+
+def fit_static_curves(levels: SettledLevels, max_start: float, max_saturation: float):
+    """The ``StaticCurves`` that fit the settled levels best (see the module docstring).
+
+    Currents are searched as fractions of each input's range over the levels: starting currents
+    from its lowest level up to ``max_start`` of the range, saturation currents up to
+    ``max_saturation`` (past 1: beyond the highest level). Returns None when some input was
+    held at fewer than two distinct levels.
+    """
+    u, y = levels.currents, levels.outputs
+    inputs = u.shape[1]
+    if any(np.unique(u[:, i]).size < 2 for i in range(inputs)):
+        return None
+    low, span = u.min(axis=0), np.ptp(u, axis=0)
+    x = (u - low) / span
+    # Start each valve linear over its whole range; the sweeps move its ends.
+    ends = [(0.0, 1.0)] * inputs
+    signs = [1.0] * inputs
+    for _ in range(_SWEEPS):
+        for i in range(inputs):
+            held = [_basis(x[:, j], *ends[j]) * signs[j] for j in range(inputs) if j != i]
+            ends[i], signs[i] = _profile(x[:, i], y, held, max_start, max_saturation)
+    columns = [_basis(x[:, i], *ends[i]) * signs[i] for i in range(inputs)]
+    sse, coefficients = _nonnegative_fit(columns, y)
+    variance = sse / max(1, y.size - (1 + 4 * inputs))
+    intervals = [
+        _start_interval(x[:, i], y, columns[:i] + columns[i + 1 :], max_start, max_saturation)
+        for i in range(inputs)
+    ]
+    increments = np.array(
+        [signs[i] * coefficients[1 + 2 * i : 3 + 2 * i] for i in range(inputs)], dtype=float
+    )
+    starts = np.array([low[i] + span[i] * ends[i][0] for i in range(inputs)])
+    saturations = np.array([low[i] + span[i] * ends[i][1] for i in range(inputs)])
+    return StaticCurves(
+        starts=starts,
+        saturations=saturations,
+        increments=increments,
+        rest_output=float(coefficients[0] - coefficients[-1]),
+        residual_rms=float(np.sqrt(sse / y.size)),
+        start_intervals=np.array(
+            [
+                low[i]
+                + span[i] * np.asarray(_within(intervals[i], sse + _CHI2_95 * variance, ends[i][0]))
+                for i in range(inputs)
+            ]
+        ),
+    )
+
+
+def _start_interval(x, y, held, max_start, max_saturation):
+    """(starts on the coarse grid, the lowest sum of squares of each), the others' curves held."""
+    starts = np.arange(0.0, max_start + 1e-12, _GRID_STEP)
+    lowest = []
+    for start in starts:
+        saturations = np.arange(start + _GRID_STEP, max_saturation + 1e-12, _GRID_STEP)
+        best = _best_of(x, y, held, [(start, c) for c in saturations])
+        lowest.append(_nonnegative_fit([*held, _signed(x, *best)], y)[0])
+    return starts, np.array(lowest)
+
+
+def _within(profile, threshold, best_start):
+    """(lowest, highest) start with its profile within ``threshold``, or a step from the best.
+
+    The profile is known at the coarse grid's points only, so the best start's neighbours on
+    that grid are in the interval.
+    """
+    starts, lowest = profile
+    kept = np.append(starts[lowest <= threshold], best_start + np.array([-1.0, 1.0]) * _GRID_STEP)
+    return float(max(kept.min(), 0.0)), float(kept.max())
+
+
+def _profile(x, y, held, max_start, max_saturation):
+    """((start, saturation), sign) of one input's curve, by the grid and its refinement."""
+    coarse = [
+        (start, saturation)
+        for start in np.arange(0.0, max_start + 1e-12, _GRID_STEP)
+        for saturation in np.arange(start + _GRID_STEP, max_saturation + 1e-12, _GRID_STEP)
+    ]
+    best = _best_of(x, y, held, coarse)
+    offsets = np.arange(-_GRID_STEP, _GRID_STEP + 1e-12, _REFINED_STEP)
+    (start, saturation), _ = best
+    fine = [
+        (s, c)
+        for s in np.clip(start + offsets, 0.0, max_start)
+        for c in np.clip(saturation + offsets, 0.0, max_saturation)
+        if c >= s + _GRID_STEP
+    ]
+    return _best_of(x, y, held, fine, best)
+
+
+def _best_of(x, y, held, ends, best=None):
+    """((start, saturation), sign) of the lowest sum of squares over ``ends``, or ``best``."""
+    lowest = np.inf if best is None else _nonnegative_fit([*held, _signed(x, *best)], y)[0]
+    for start, saturation in ends:
+        column = _basis(x, start, saturation)
+        for sign in (1.0, -1.0):
+            sse, _ = _nonnegative_fit([*held, sign * column], y)
+            # Strictly lower: ties go to the earlier (lower) point, the same on every run.
+            if sse < lowest:
+                lowest, best = sse, ((float(start), float(saturation)), sign)
+    return best
+
+
+def _signed(x, ends, sign):
+    return sign * _basis(x, *ends)
+
+
+def _nonnegative_fit(columns, y):
+    """(sum of squares, [offset+, coefficients..., offset-]): y by columns with weights >= 0."""
+    matrix = np.column_stack([np.ones(y.size), *columns, -np.ones(y.size)])
+    coefficients, norm = scipy.optimize.nnls(matrix, y)
+    return norm**2, coefficients
+
+
+def _basis(x, start, saturation) -> np.ndarray:
+    """(N, 2) monotone degree-2 Bernstein steps of t = (x - start) / (saturation - start)."""
+    t = np.clip((x - start) / (saturation - start), 0.0, 1.0)
+    return np.column_stack([1.0 - (1.0 - t) ** 2, t * t])

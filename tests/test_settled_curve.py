@@ -1,0 +1,104 @@
+"""Static curves from settled holds, and the two-stage Hammerstein fit they start.
+
+The references are planted: curves in the fitted family (a monotone quadratic above a starting
+current, flat from saturation on), and a Hammerstein model whose maps are such curves, simulated
+by its own code with holds long enough to settle.
+"""
+
+import numpy as np
+import pytest
+
+from maskless.analysis.identification.hammerstein import estimate_hammerstein
+from maskless.analysis.identification.settled_curve import (
+    SettledLevels,
+    fit_static_curves,
+    settled_levels,
+)
+from maskless.diagrams.valve_level_experiment import random_level_currents
+from maskless.systems.hammerstein_model import HammersteinModel
+from maskless.systems.plant.valve_map import ValveMap
+
+TS = 0.1
+# (start, saturation, linear step, quadratic step) per valve, currents in A: an inlet that leaves
+# its start with a slope and curves up, an outlet that lowers the output, more gently at first.
+PLANTED_CURVES = ((0.060, 0.165, 0.2, 0.8), (0.050, 0.150, -0.1, -0.4))
+
+
+def _planted_curve(currents, start, saturation, linear, quadratic):
+    t = np.clip((np.asarray(currents) - start) / (saturation - start), 0.0, 1.0)
+    return linear * (1.0 - (1.0 - t) ** 2) + quadratic * t * t
+
+
+def _planted_map(start, saturation, linear, quadratic):
+    currents = np.linspace(start, saturation, 201)
+    curve = _planted_curve(currents, start, saturation, linear, quadratic)
+    return ValveMap(currents, curve / curve[-1])
+
+
+def test_a_settled_hold_gives_its_steady_output_and_short_holds_none():
+    # A first-order response (pole 0.9) to held levels: 40 samples settle to 0.9^40 = 1.5 %.
+    levels = np.repeat([0.0, 1.0, 3.0, 2.0], [50, 10, 60, 80])
+    y = np.zeros(levels.size)
+    for k in range(1, levels.size):
+        y[k] = 0.9 * y[k - 1] + 0.1 * levels[k - 1]
+    found = settled_levels(levels[:, None], y, 40, 5)
+    np.testing.assert_array_equal(found.currents[:, 0], [0.0, 3.0, 2.0])
+    np.testing.assert_array_equal(found.samples, [10, 20, 40])
+    np.testing.assert_allclose(found.outputs, [0.0, 3.0, 2.0], atol=0.02 * 3.0)
+
+
+def test_planted_curves_are_recovered_from_their_levels():
+    rng = np.random.default_rng(5)
+    currents = random_level_currents(90, 1.0, (0.19, 0.19), (1.0, 1.0), 7).T
+    rest = 0.2
+    outputs = rest + sum(_planted_curve(currents[:, i], *PLANTED_CURVES[i]) for i in range(2))
+    noisy = outputs + 1e-3 * rng.standard_normal(outputs.size)
+    curves = fit_static_curves(SettledLevels(currents, noisy, np.ones(90)), 0.95, 1.5)
+    grid = np.linspace(0.0, 0.19, 381)
+    for i, (start, saturation, *_) in enumerate(PLANTED_CURVES):
+        assert curves.starts[i] == pytest.approx(start, abs=2e-3)
+        assert curves.saturations[i] == pytest.approx(saturation, abs=2e-3)
+        # The 95 % profile interval holds the planted start and is as narrow as the noise.
+        low, high = curves.start_intervals[i]
+        assert low <= start <= high and high - low < 0.01
+        truth = _planted_curve(grid, *PLANTED_CURVES[i])
+        assert np.max(np.abs(curves.curve(i, grid) - truth)) < 0.02 * np.max(np.abs(truth))
+    assert curves.rest_output == pytest.approx(rest, abs=2e-3)
+
+
+def test_a_valve_held_at_one_level_has_no_curve():
+    currents = np.column_stack([np.linspace(0.0, 0.19, 20), np.zeros(20)])
+    levels = SettledLevels(currents, np.linspace(0.0, 1.0, 20), np.ones(20))
+    assert fit_static_curves(levels, 0.95, 1.5) is None
+
+
+def test_with_settled_holds_the_hammerstein_fit_finds_the_planted_curves_and_poles():
+    planted = HammersteinModel(
+        maps=tuple(_planted_map(*curve) for curve in PLANTED_CURVES),
+        a=[np.poly([0.95, 0.8])[1:]] * 2,
+        b=[[0.004, 0.006], [-0.001, -0.0015]],
+        input_delay_samples=1,
+        operating_output=0.2,
+        sample_period_s=TS,
+        input_unit="A",
+        output_unit="m",
+    )
+    # Holds of 10-40 s: the record's ARX model (a linear model of a nonlinear record) puts its
+    # slowest pole at about 0.98, so holds count as settled after some 20 s; 40 minutes give each
+    # valve a dozen settled levels across its range.
+    u = random_level_currents(24000, TS, (0.19, 0.19), (10.0, 40.0), 2).T
+    rng = np.random.default_rng(2)
+    y = planted.simulate(u) + 1e-4 * rng.standard_normal(u.shape[0])
+    fit = estimate_hammerstein(u, y, 2, TS, input_unit="A", output_unit="m")
+    assert fit.converged, fit.message
+    model = fit.model
+    grid = np.linspace(0.0, 0.19, 381)
+    for i, (start, *_) in enumerate(PLANTED_CURVES):
+        assert model.maps[i].starting_current == pytest.approx(start, abs=2e-3)
+        truth = planted.static_curve(i, grid)
+        error = np.max(np.abs(model.static_curve(i, grid) - truth))
+        assert error < 0.02 * np.max(np.abs(truth))
+    np.testing.assert_allclose(np.sort(model.poles().real), [0.8, 0.95], atol=5e-3)
+    assert fit.simulation_fit_percent > 98.0
+    for (low, high), (start, *_) in zip(fit.starting_current_spread(), PLANTED_CURVES, strict=True):
+        assert low <= start <= high

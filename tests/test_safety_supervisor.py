@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 from maskless.errors import ConfigError
-from maskless.systems.control.pressure_pace_check import PressurePaceConfig
 from maskless.systems.control.safety_supervisor import (
     MODES,
     REASONS,
@@ -18,6 +17,7 @@ from maskless.systems.control.safety_supervisor import (
     validate_safety,
 )
 from tests.system_harness import port_layout
+from tests.test_pressure_pace_check import CONFIG as PACE_CHECK
 
 PERIOD_S = 0.1
 LOW_M, HIGH_M = 0.200, 0.230
@@ -34,14 +34,7 @@ CONFIG = SafetyConfig(
     fused_error_band_m=0.0012,
     beam_dwell_s=0.3,
     hold_time_constant_s=2.0,
-    pressure_pace=PressurePaceConfig(
-        level_gain=0.6,
-        pace_gain=0.15,
-        drift_pa=50.0,
-        per_current_pa_per_a=5000.0,
-        alarm_pa=100.0,
-        still_pace_pa=10.0,
-    ),
+    pressure_pace=PACE_CHECK,
 )
 PACE = CONFIG.pressure_pace
 # A healthy loop at rest on its reference, two cameras used.

@@ -53,7 +53,11 @@ import scipy.optimize
 import scipy.signal
 
 from maskless.analysis.identification.fit_metrics import fit_percent
-from maskless.analysis.identification.settled_curve import fit_static_curves, settled_levels
+from maskless.analysis.identification.settled_curve import (
+    fit_static_curves,
+    parameter_count,
+    settled_levels,
+)
 from maskless.errors import ModelError
 from maskless.systems.hammerstein_model import HammersteinModel
 from maskless.systems.plant.valve_map import ValveMap
@@ -274,8 +278,7 @@ def _settled_curves(u, y, order, delay):
         return None, None
     settle = int(np.ceil(_SETTLE_TIME_CONSTANTS / -np.log(slowest)))
     levels = settled_levels(u, y, settle, max(1, settle // 8))
-    parameters = 1 + 4 * u.shape[1]  # rest output; per valve two ends and two shape steps
-    if levels.outputs.size < 2 * parameters:
+    if levels.outputs.size < 2 * parameter_count(u.shape[1]):
         return None, None
     curves = fit_static_curves(levels, _MAX_START, _MAX_SATURATION)
     if curves is None or np.any(curves.gains() == 0.0):
@@ -344,10 +347,11 @@ class _Problem:
                 for i, (currents, openings) in enumerate(knots)
             ]
             self.fixed_gains = curves.gains() / self.y_scale
-        self.map_size = 0 if linear else 2 + (segments - 1)
-        self.input_size = order + self.map_size
+        # Per input: b_i, then the map's start, span and logits. With curves only b_i2..b_in:
+        # b_i1 follows from the curve's gain.
+        self.input_size = order + (0 if linear else 2 + (segments - 1))
         if curves is not None:
-            self.map_size, self.input_size = 0, order - 1
+            self.input_size = order - 1
         self.size = order + self.inputs * self.input_size + 1
 
     # --- the parameter vector -------------------------------------------------------------------

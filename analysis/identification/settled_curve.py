@@ -44,6 +44,11 @@ _CHI2_95 = 3.841
 MAP_PIECES = 16
 
 
+def parameter_count(inputs: int) -> int:
+    """The curves' parameters: the rest output, and per input two ends and two shape steps."""
+    return 1 + 4 * inputs
+
+
 @dataclass(frozen=True)
 class SettledLevels:
     """The holds that settled: (M, inputs) currents, (M,) mean outputs, (M,) samples averaged."""
@@ -95,8 +100,8 @@ def settled_levels(u, y, settle_samples: int, min_tail_samples: int) -> SettledL
     change = np.flatnonzero(np.any(np.diff(u, axis=0) != 0.0, axis=1)) + 1
     starts = np.concatenate([[0], change])
     ends = np.concatenate([change, [u.shape[0]]])
-    kept = [(a, b) for a, b in zip(starts, ends, strict=True) if b - a >= settle_samples + 1]
-    kept = [(a, b) for a, b in kept if b - a - settle_samples >= min_tail_samples]
+    tail = max(1, min_tail_samples)
+    kept = [(a, b) for a, b in zip(starts, ends, strict=True) if b - a - settle_samples >= tail]
     return SettledLevels(
         currents=np.array([u[a] for a, _ in kept]).reshape(len(kept), u.shape[1]),
         outputs=np.array([y[a + settle_samples : b].mean() for a, b in kept]),
@@ -127,7 +132,7 @@ def fit_static_curves(levels: SettledLevels, max_start: float, max_saturation: f
             ends[i], signs[i] = _profile(x[:, i], y, held, max_start, max_saturation)
     columns = [_basis(x[:, i], *ends[i]) * signs[i] for i in range(inputs)]
     sse, coefficients = _nonnegative_fit(columns, y)
-    variance = sse / max(1, y.size - (1 + 4 * inputs))
+    variance = sse / max(1, y.size - parameter_count(inputs))
     intervals = [
         _start_interval(x[:, i], y, columns[:i] + columns[i + 1 :], max_start, max_saturation)
         for i in range(inputs)

@@ -184,7 +184,7 @@ def pace_check(
     )
     # The first tick's level is its reading: the state starts at zero, so a gain of one.
     level_gain = if_then_else(first, 1.0, if_then_else(coasting, 0.0, config.level_gain))
-    pace_gain = if_then_else(first, 0.0, if_then_else(coasting, 0.0, config.pace_gain))
+    pace_gain = if_then_else(coasting, 0.0, config.pace_gain)
     next_level = level + pace + level_gain * residual
     next_pace = if_then_else(first, 0.0, pace + pace_gain * residual)
     return PaceCheck(next_level, next_pace, next_rise, next_fall, jump)

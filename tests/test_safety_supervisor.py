@@ -18,6 +18,7 @@ from maskless.systems.control.safety_supervisor import (
 )
 from tests.system_harness import port_layout
 from tests.test_pressure_pace_check import CONFIG as PACE_CHECK
+from tests.test_shut_inlet_check import CONFIG as SHUT_INLET_CHECK
 
 PERIOD_S = 0.1
 LOW_M, HIGH_M = 0.200, 0.230
@@ -35,8 +36,10 @@ CONFIG = SafetyConfig(
     beam_dwell_s=0.3,
     hold_time_constant_s=2.0,
     pressure_pace=PACE_CHECK,
+    shut_inlet=SHUT_INLET_CHECK,
 )
 PACE = CONFIG.pressure_pace
+SHUT = CONFIG.shut_inlet
 # A healthy loop at rest on its reference, two cameras used.
 HEALTHY = {
     "inlet_command_a": 0.100,
@@ -273,6 +276,62 @@ def test_a_step_the_commands_explain_is_the_loop_at_work():
         assert s.latched() == latched, inlet
 
 
+SHUT_TICKS = math.ceil(SHUT.hold_s / PERIOD_S - 1e-9)
+
+
+def test_a_shut_inlet_that_keeps_the_pressure_latches_after_its_hold():
+    # Shut at one tick, the command reaches the reading at the next, which notes the level the
+    # pressure must fall from; the hold's last tick finds it has not fallen.
+    s = Supervisor()
+    s.tick(25)
+    s.tick(SHUT_TICKS, inlet_command_a=0.0)
+    assert s.latched() == set()
+    s.tick()
+    assert s.latched() == {"inlet_not_shut"} and s.mode() == "pass"
+    assert s.valves() == (0.0, HEALTHY["outlet_command_a"])
+    assert s.out("beam_hold")[0] == 1.0
+
+
+@pytest.mark.parametrize("fall_fraction, latched", [(1.1, set()), (0.9, {"inlet_not_shut"})])
+def test_a_shut_inlet_passes_while_the_pressure_falls_by_its_least_fall(fall_fraction, latched):
+    # On a steady fall the tracker follows exactly: over the hold's ticks after the noted one
+    # the level falls (hold ticks - 1) x the fall per tick.
+    fall_pa = fall_fraction * SHUT.min_fall_pa / (SHUT_TICKS - 1)
+    s, pressure = _on_a_steady_pace(-fall_pa)
+    for _ in range(40):
+        pressure -= fall_pa
+        s.tick(inlet_command_a=0.0, bladder_gauge_pressure_pa=pressure)
+    assert pressure > SHUT.min_pressure_pa
+    assert s.latched() == latched
+
+
+def test_an_empty_bladder_with_its_inlet_shut_is_the_head_at_rest():
+    s = Supervisor()
+    s.tick(25, bladder_gauge_pressure_pa=0.99 * SHUT.min_pressure_pa)
+    s.tick(100, inlet_command_a=0.0)
+    assert s.latched() == set()
+
+
+def test_an_inlet_that_opens_again_restarts_the_hold():
+    s = Supervisor()
+    s.tick(25)
+    for _ in range(3):  # one tick short of the hold, counting the command's tick to the reading
+        s.tick(SHUT_TICKS - 1, inlet_command_a=0.0)
+        s.tick(inlet_command_a=0.001)
+    assert s.latched() == set()
+    s.tick(SHUT_TICKS + 1, inlet_command_a=0.0)
+    assert s.latched() == {"inlet_not_shut"}
+
+
+def test_a_shut_inlet_is_not_judged_while_the_supervisor_holds_the_air():
+    s = Supervisor()
+    s.tick(25)
+    s.tick(fusion_health=[0.0, 0.0, 0.0])
+    assert s.latched() == {"no_camera"} and s.mode() == "hold"
+    s.tick(3 * SHUT_TICKS, inlet_command_a=0.0)
+    assert s.latched() == {"no_camera"}
+
+
 def test_the_beam_waits_for_the_dwell_and_drops_the_instant_the_error_grows():
     s = Supervisor()
     assert s.out("beam_hold")[0] == 1.0  # a fresh supervisor holds the beam
@@ -313,6 +372,7 @@ def test_safety_states_names_the_state_and_the_reasons():
         ("pressure_pace.per_current_pa_per_a", -0.1),
         ("pressure_pace.level_gain", 2.0),
         ("pressure_pace.alarm_pa", 0.0),
+        ("shut_inlet.min_fall_pa", -5.0),
     ],
 )
 def test_a_limit_out_of_range_is_refused_by_name(field, value):

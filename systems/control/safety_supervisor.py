@@ -30,6 +30,9 @@ Each reason has its safe action (``SAFE_ACTIONS``):
   stuck open or shut, a seam opening, the supply lost. The loop goes on: it is what can still
   fight a stuck inlet with the outlet (held currents could not: measured, the head rose 6.2 mm
   holding and 4.3 mm with the loop on, assets/faults/inlet-stuck-open.yaml).
+- ``inlet_not_shut`` (continue): the inlet has been commanded shut for ``shut_inlet.hold_s`` and
+  the pressurised bladder has not lost air (``shut_inlet_check``): something fills it, an inlet
+  stuck open. The loop goes on, as for ``pressure_jump``: the outlet is what can still fight it.
 - ``overpressure`` (vent): the bladder's gauge pressure (its sensor) is above
   ``max_gauge_pressure_pa``, or the sensor reads no number.
 
@@ -78,6 +81,11 @@ from maskless.systems.control.pressure_pace_check import (
     pace_check,
     validate_pressure_pace,
 )
+from maskless.systems.control.shut_inlet_check import (
+    ShutInletConfig,
+    shut_inlet_check,
+    validate_shut_inlet,
+)
 from maskless.systems.named_symbolic_system import (
     PortMap,
     add_named_symbolic_system,
@@ -96,6 +104,7 @@ SAFE_ACTIONS = {
     "non_finite_command": HOLD,
     "inlet_full_too_long": CONTINUE,
     "pressure_jump": CONTINUE,
+    "inlet_not_shut": CONTINUE,
     "overpressure": VENT,
 }
 REASONS = tuple(SAFE_ACTIONS)
@@ -120,6 +129,7 @@ class SafetyConfig:
         max_full_inlet_s: the longest the inlet may be fully open in a row (s).
         disagreement_persist_s: how long two cameras may disagree before the air is held (s).
         pressure_pace: the check of the pressure's pace (``pressure_pace_check``).
+        shut_inlet: the check that a shut inlet lets the pressure fall (``shut_inlet_check``).
         estimate_margin_m: the beam is held while the controller's estimated error is within
             this much of the tolerance (m).
         fused_error_band_m: ...or while the fused camera estimate's error is beyond this (m).
@@ -138,6 +148,7 @@ class SafetyConfig:
     beam_dwell_s: float = UNSET
     hold_time_constant_s: float = UNSET
     pressure_pace: PressurePaceConfig = field(default_factory=PressurePaceConfig)
+    shut_inlet: ShutInletConfig = field(default_factory=ShutInletConfig)
 
 
 def validate_safety(config: SafetyConfig, tolerance_m: float) -> None:
@@ -169,6 +180,7 @@ def validate_safety(config: SafetyConfig, tolerance_m: float) -> None:
         ],
     )
     validate_pressure_pace(config.pressure_pace, "safety.pressure_pace")
+    validate_shut_inlet(config.shut_inlet, "safety.shut_inlet")
 
 
 def safety_states(mode: np.ndarray, reasons: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -279,6 +291,7 @@ def add_safety_supervisor(
     pressure_rise, pressure_fall = Variable("pressure_rise_pa"), Variable("pressure_fall_pa")
     last_inlet, last_outlet = Variable("last_inlet_command_a"), Variable("last_outlet_command_a")
     last_activity = Variable("last_command_activity_a")
+    shut_ticks, shut_start = Variable("shut_inlet_ticks"), Variable("shut_inlet_start_level_pa")
     low, high = head_height_limits_m
     margin = config.travel_margin_m
     commands_finite = _commands_finite(inlet, outlet)
@@ -317,6 +330,17 @@ def add_safety_supervisor(
             _within(estimated - reference, -tolerance_m, tolerance_m),
         ),
     )
+    shut_check = shut_inlet_check(
+        config.shut_inlet,
+        period_s=period_s,
+        shut_ticks=shut_ticks,
+        start_level=shut_start,
+        # The tracker's level as of the tick before, the command passed on then: both lag the
+        # reading by a tick, and the state costs nothing to evaluate again.
+        level=pressure_level,
+        inlet_command_a=last_inlet,
+        watched=logical_and(logical_not(supervising), watching),
+    )
     seen = tracks_used > 0.5
     failing = {
         "camera_excluded": logical_and(
@@ -337,6 +361,7 @@ def add_safety_supervisor(
             at_full_inlet, full_inlet + 1 >= ticks(config.max_full_inlet_s)
         ),
         "pressure_jump": pressure_check.jump,
+        "inlet_not_shut": shut_check.not_shut,
         "overpressure": logical_not(pressure <= config.max_gauge_pressure_pa),
     }
     band = tolerance_m - config.estimate_margin_m
@@ -414,6 +439,8 @@ def add_safety_supervisor(
         (last_outlet, remembered[1]),
         (last_activity, next_activity),
         (disagreeing, if_then_else(disagreement > 0.5, disagreeing + 1, 0.0)),
+        (shut_ticks, shut_check.shut_ticks),
+        (shut_start, shut_check.start_level),
     ]
     return add_named_symbolic_system(
         builder,

@@ -27,29 +27,47 @@ from maskless.analysis.identification.records import (
     parse_range,
     read_aligned_mcap,
 )
+from maskless.diagrams.identification_request import DEFAULT_MCAP_OUTPUT
 from maskless.diagrams.output_folder import output_folder
 from maskless.errors import RecordError
-from maskless.recording import FUSION_TOPIC
 
-DEFAULT_OUTPUT = f"{FUSION_TOPIC}:head_height_m"
 # The Hammerstein model must beat the linear one by this many points of validation fit for the
 # verdict to call the valve maps worth their parameters.
 _MARGIN_POINTS = 5.0
 
 
-def read_two_valve_record(recording: Path, output_field: str = DEFAULT_OUTPUT):
-    """(currents (N, 2) in A, output (N,), its period in s) from a maskless recording.
+def read_two_valve_record(
+    recording: Path,
+    input_field: str = VALVE_CURRENTS_FIELDS,
+    output_recording: Path | None = None,
+    output_field: str = DEFAULT_MCAP_OUTPUT,
+):
+    """(currents (N, 2) in A, output (N,), its period in s) from maskless recordings.
+
+    Args:
+        recording: the MCAP recording of the valves' currents (A).
+        input_field: "TOPIC:FIELD,FIELD", the inlet's and the outlet's current in that order.
+        output_recording: the MCAP recording of the output (default: ``recording``).
+        output_field: "TOPIC:FIELD" of the output (m).
 
     Raises:
-        RecordError: not an MCAP recording, or its currents and output share fewer than 2
-            samples or have a gap (``records.read_aligned_mcap``).
+        RecordError: not an MCAP recording, an input that is not two fields, or currents and
+            output that share fewer than 2 samples or have a gap (``records.read_aligned_mcap``).
     """
-    if Path(recording).suffix != ".mcap":
+    output_recording = output_recording or recording
+    for path in (recording, output_recording):
+        if Path(path).suffix != ".mcap":
+            raise RecordError(
+                f"{path}: --method hammerstein reads a maskless MCAP recording (both valves' "
+                "currents and the head height)"
+            )
+    u, y, period_s = read_aligned_mcap(recording, input_field, output_recording, output_field)
+    if u.ndim != 2 or u.shape[1] != len(VALVE_NAMES):
         raise RecordError(
-            f"{recording}: --method hammerstein reads a maskless MCAP recording (both valves' "
-            "currents and the head height)"
+            f"--input-column {input_field!r}: expected TOPIC:FIELD,FIELD, the inlet's and the "
+            f"outlet's current (default {VALVE_CURRENTS_FIELDS})"
         )
-    return read_aligned_mcap(recording, VALVE_CURRENTS_FIELDS, recording, output_field)
+    return u, y, period_s
 
 
 def identify_hammerstein_to_files(
@@ -59,15 +77,19 @@ def identify_hammerstein_to_files(
     out: str | Path,
     estimation: str = "0:0.7",
     validation: str = "0.7:1",
-    output_field: str = DEFAULT_OUTPUT,
+    input_field: str = VALVE_CURRENTS_FIELDS,
+    output_recording: Path | None = None,
+    output_field: str = DEFAULT_MCAP_OUTPUT,
 ) -> dict:
     """Fits, judges and writes (see the module docstring); returns the report.
+
+    The record is read as ``read_two_valve_record`` reads it.
 
     Raises:
         RecordError: a recording that cannot be read as two valves and an output, a --ts more
             than 1 % off its sample period, or parts out of range.
     """
-    u, y, period_s = read_two_valve_record(recording, output_field)
+    u, y, period_s = read_two_valve_record(recording, input_field, output_recording, output_field)
     if abs(period_s - ts) > 0.01 * period_s:
         raise RecordError(f"--ts {ts}: the recording's samples are {period_s:.6g} s apart")
     estimation_part = parse_range(estimation, y.size, "--estimation")

@@ -45,3 +45,29 @@ def test_identify_hammerstein_refuses_a_csv_in_one_line(tmp_path, capsys):
     assert main([*argv, "--out", str(tmp_path / "id")]) != 0
     error = capsys.readouterr().err.strip()
     assert "reads a maskless MCAP recording" in error and "\n" not in error
+
+
+@pytest.mark.parametrize(
+    "flag",
+    [["--k-step", "3"], ["--detrend", "none"], ["--input-unit", "mA"], ["--initial-state", "zero"]],
+)
+def test_identify_hammerstein_refuses_a_flag_it_would_ignore(flag, tmp_path, capsys):
+    argv = ["identify", "--input", "run.mcap", "--ts", "0.1", "--method", "hammerstein", *flag]
+    assert main([*argv, "--out", str(tmp_path / "id")]) != 0
+    error = capsys.readouterr().err.strip()
+    assert f"{flag[0]}: not used by --method hammerstein" in error and "\n" not in error
+
+
+def test_identify_hammerstein_reads_the_fields_it_is_given(recording, tmp_path, capsys):
+    # The valves named the other way round: the "inlet" of the fit is the outlet, which lowers
+    # the head, so its curve's full value is negative.
+    swapped = "/controller/command:outlet_valve_current_a,inlet_valve_current_a"
+    argv = ["identify", "--input", str(recording), "--ts", "0.0666667", "--method", "hammerstein"]
+    capsys.readouterr()
+    assert main([*argv, "--input-column", swapped, "--out", str(tmp_path / "id"), "--json"]) == 0
+    (entry,) = json.loads(capsys.readouterr().out)["models"]
+    assert entry["valves"]["inlet"]["dc_gain"] < 0 < entry["valves"]["outlet"]["dc_gain"]
+    one = "/controller/command:inlet_valve_current_a"
+    assert main([*argv, "--input-column", one, "--out", str(tmp_path / "one")]) != 0
+    error = capsys.readouterr().err.strip()
+    assert "--input-column" in error and "expected TOPIC:FIELD,FIELD" in error

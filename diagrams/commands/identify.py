@@ -61,7 +61,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="NAME|INDEX|TOPIC:FIELD",
         help=f"CSV column, or MCAP TOPIC:FIELD (default for MCAP: {DEFAULT_MCAP_INPUT}); "
         "several inputs as NAME,NAME or TOPIC:FIELD,FIELD (both valves: "
-        f"{VALVE_CURRENTS_FIELDS}) for one model of several inputs",
+        f"{VALVE_CURRENTS_FIELDS}, the default of --method hammerstein) for one model of "
+        "several inputs",
     )
     parser.add_argument(
         "--output-column",
@@ -169,20 +170,44 @@ def identification_request(args: argparse.Namespace) -> IdentificationRequest:
     )
 
 
+# Flags the Hammerstein fit has no use for: it judges simulation from rest on the record as
+# recorded, in the recording's own units (A and m).
+_NOT_FOR_HAMMERSTEIN = ("--detrend", "--k-step", "--initial-state", "--input-unit", "--output-unit")
+
+
+def _run_hammerstein(args: argparse.Namespace) -> int:
+    """`maskless identify --method hammerstein`; a flag it would ignore is refused by name."""
+    given = getattr(args, "given_flags", frozenset())
+    for flag in _NOT_FOR_HAMMERSTEIN:
+        if flag in given:
+            raise ConfigError(
+                f"{flag}: not used by --method hammerstein (it fits and judges the record as "
+                "recorded, by simulation from rest, in the recording's units)"
+            )
+    from maskless.diagrams.hammerstein_run import (
+        format_hammerstein_report,
+        identify_hammerstein_to_files,
+    )
+
+    report = identify_hammerstein_to_files(
+        args.input,
+        args.ts,
+        parse_orders(args.orders),
+        args.out,
+        estimation=args.estimation,
+        validation=args.validation,
+        input_field=args.input_column or VALVE_CURRENTS_FIELDS,
+        output_recording=args.output,
+        output_field=args.output_column or DEFAULT_MCAP_OUTPUT,
+    )
+    print(json.dumps(report) if args.json else format_hammerstein_report(report))
+    return 0
+
+
 def run_command(args: argparse.Namespace) -> int:
     """`maskless identify`: returns the process exit code."""
     if args.method == "hammerstein":
-        from maskless.diagrams.hammerstein_run import (
-            format_hammerstein_report,
-            identify_hammerstein_to_files,
-        )
-
-        estimation = {"estimation": args.estimation, "validation": args.validation}
-        report = identify_hammerstein_to_files(
-            args.input, args.ts, parse_orders(args.orders), args.out, **estimation
-        )
-        print(json.dumps(report) if args.json else format_hammerstein_report(report))
-        return 0
+        return _run_hammerstein(args)
     request = identification_request(args)
     # Forked before the estimators are imported: matplotlib's import overlaps scipy's.
     plotter = start_plot_worker(args.out)

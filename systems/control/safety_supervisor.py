@@ -313,8 +313,10 @@ def add_safety_supervisor(
     )
     at_full_inlet = inlet_out >= inlet_saturation_a
     watching = elapsed >= ticks(config.start_grace_s)
-    # Not while the supervisor itself moves the air (holding or venting), and from the third tick
-    # (the tracker starts at the first reading and has a pace from the second).
+    # The pressure checks judge the loop's own commands: not while the supervisor itself moves
+    # the air (holding or venting).
+    commands_in_charge = logical_and(logical_not(supervising), watching)
+    # From the third tick: the tracker starts at the first reading and has a pace from the second.
     pressure_check = pace_check(
         config.pressure_pace,
         level=pressure_level,
@@ -326,7 +328,7 @@ def add_safety_supervisor(
         command_activity_a=last_activity,
         first=elapsed < 0.5,
         watched=logical_and(
-            logical_and(logical_not(supervising), logical_and(watching, elapsed >= 2)),
+            logical_and(commands_in_charge, elapsed >= 2),
             _within(estimated - reference, -tolerance_m, tolerance_m),
         ),
     )
@@ -339,7 +341,7 @@ def add_safety_supervisor(
         # reading by a tick, and the state costs nothing to evaluate again.
         level=pressure_level,
         inlet_command_a=last_inlet,
-        watched=logical_and(logical_not(supervising), watching),
+        watched=commands_in_charge,
     )
     seen = tracks_used > 0.5
     failing = {

@@ -55,11 +55,11 @@ def read_two_valve_record(
             output that share fewer than 2 samples or have a gap (``records.read_aligned_mcap``).
     """
     output_recording = output_recording or recording
-    for path in (recording, output_recording):
+    for flag, path in (("--input", recording), ("--output", output_recording)):
         if Path(path).suffix != ".mcap":
             raise RecordError(
-                f"{path}: --method hammerstein reads a maskless MCAP recording (both valves' "
-                "currents and the head height)"
+                f"{flag} {path}: --method hammerstein reads a maskless MCAP recording (both "
+                "valves' currents and the head height)"
             )
     u, y, period_s = read_aligned_mcap(recording, input_field, output_recording, output_field)
     if u.ndim != 2 or u.shape[1] != len(VALVE_NAMES):

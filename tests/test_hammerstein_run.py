@@ -48,14 +48,21 @@ def test_identify_hammerstein_refuses_a_csv_in_one_line(tmp_path, capsys):
 
 
 @pytest.mark.parametrize(
-    "flag",
-    [["--k-step", "3"], ["--detrend", "none"], ["--input-unit", "mA"], ["--initial-state", "zero"]],
+    "typed, flag",
+    [
+        (["--k-step", "3"], "--k-step"),
+        (["--k-st", "3"], "--k-step"),  # argparse takes an abbreviation
+        (["--detrend", "none"], "--detrend"),
+        (["--input-unit", "mA"], "--input-unit"),
+        (["--output-unit", "mm"], "--output-unit"),
+        (["--initial-state", "zero"], "--initial-state"),
+    ],
 )
-def test_identify_hammerstein_refuses_a_flag_it_would_ignore(flag, tmp_path, capsys):
-    argv = ["identify", "--input", "run.mcap", "--ts", "0.1", "--method", "hammerstein", *flag]
+def test_identify_hammerstein_refuses_a_flag_it_would_ignore(typed, flag, tmp_path, capsys):
+    argv = ["identify", "--input", "run.mcap", "--ts", "0.1", "--method", "hammerstein", *typed]
     assert main([*argv, "--out", str(tmp_path / "id")]) != 0
     error = capsys.readouterr().err.strip()
-    assert f"{flag[0]}: not used by --method hammerstein" in error and "\n" not in error
+    assert f"{flag}: not used by --method hammerstein" in error and "\n" not in error
 
 
 def test_identify_hammerstein_reads_the_fields_it_is_given(recording, tmp_path, capsys):
@@ -71,3 +78,11 @@ def test_identify_hammerstein_reads_the_fields_it_is_given(recording, tmp_path, 
     assert main([*argv, "--input-column", one, "--out", str(tmp_path / "one")]) != 0
     error = capsys.readouterr().err.strip()
     assert "--input-column" in error and "expected TOPIC:FIELD,FIELD" in error
+    # The output's field and file are the ones given.
+    missing = "/fusion/estimate:no_such_field"
+    assert main([*argv, "--output-column", missing, "--out", str(tmp_path / "two")]) != 0
+    assert "no_such_field" in capsys.readouterr().err
+    csv = tmp_path / "y.csv"
+    csv.write_text("1\n2\n")
+    assert main([*argv, "--output", str(csv), "--out", str(tmp_path / "three")]) != 0
+    assert f"--output {csv}: --method hammerstein reads" in capsys.readouterr().err

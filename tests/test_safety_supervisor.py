@@ -305,6 +305,35 @@ def test_a_shut_inlet_passes_while_the_pressure_falls_by_its_least_fall(fall_fra
     assert s.latched() == latched
 
 
+def test_a_stuck_inlet_after_a_long_shut_stretch_is_judged_a_window_later():
+    # Three windows of a healthy fall (1.5 times the least fall), then the pressure holds with
+    # the inlet still shut: the window after the fall stopped latches, none before.
+    fall_pa = 1.5 * SHUT.min_fall_pa / (SHUT_TICKS - 1)
+    s, pressure = _on_a_steady_pace(-fall_pa)
+    for _ in range(3 * SHUT_TICKS):
+        pressure -= fall_pa
+        s.tick(inlet_command_a=0.0, bladder_gauge_pressure_pa=pressure)
+    assert s.latched() == set()
+    s.tick(2 * SHUT_TICKS, inlet_command_a=0.0, bladder_gauge_pressure_pa=pressure)
+    assert s.latched() == {"inlet_not_shut"}
+
+
+def test_a_shut_inlet_is_judged_from_a_tracked_level_not_the_zero_state():
+    # No grace and no least pressure: the check still waits for the tracker's level, so a
+    # healthy fall from the first tick is no alarm (the zero state is no level to fall from).
+    config = dataclasses.replace(
+        CONFIG,
+        start_grace_s=0.0,
+        shut_inlet=dataclasses.replace(SHUT, min_pressure_pa=0.0),
+    )
+    s = Supervisor(config)
+    pressure = HEALTHY["bladder_gauge_pressure_pa"]
+    for _ in range(5 * SHUT_TICKS):
+        pressure -= 30.0
+        s.tick(inlet_command_a=0.0, bladder_gauge_pressure_pa=pressure)
+    assert s.latched() == set()
+
+
 def test_an_empty_bladder_with_its_inlet_shut_is_the_head_at_rest():
     s = Supervisor()
     s.tick(25, bladder_gauge_pressure_pa=0.99 * SHUT.min_pressure_pa)

@@ -22,9 +22,10 @@ CONFIG = ShutInletConfig(shut_current_a=0.0, hold_s=1.0, min_fall_pa=100.0, min_
 
 @pytest.mark.parametrize(
     "hold_s, period_s, ticks",
-    [(1.0, 1 / 15, 15), (1.0, 0.1, 10), (0.25, 0.1, 3), (0.05, 0.1, 2), (1e-6, 0.1, 2)],
+    [(1.0, 1 / 15, 15), (1.0, 0.1, 10), (0.35, 0.1, 4), (0.25, 0.1, 3), (0.05, 0.1, 3)],
 )
-def test_the_hold_is_whole_ticks_rounded_up_and_at_least_two(hold_s, period_s, ticks):
+def test_the_hold_is_whole_ticks_rounded_up_and_at_least_three(hold_s, period_s, ticks):
+    # Three: a tick to note the level, two for a command to reach the reading.
     assert hold_ticks(dataclasses.replace(CONFIG, hold_s=hold_s), period_s) == ticks
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from maskless.systems.units import a_to_ma, m_to_mm, ma_to_a, mm2_to_m2, mm_to_m
+from maskless.systems.units import a_to_ma, m_to_mm, ma_to_a, mm2_to_m2, mm_to_m, whole_ticks
 
 
 def test_mm_to_m():
@@ -29,3 +29,13 @@ def test_ma_to_a():
 
 def test_a_to_ma_inverts_ma_to_a():
     assert a_to_ma(ma_to_a(60.0)) == pytest.approx(60.0, rel=1e-15)
+
+
+@pytest.mark.parametrize(
+    "duration_s, period_s, ticks",
+    # A whole number of ticks stays whole despite float error (1.0 / (1 / 15) is not exactly 15);
+    # anything past it is the next tick.
+    [(0.5, 1 / 15, 8), (1.0, 1 / 15, 15), (0.3, 0.1, 3), (0.3000001, 0.1, 4), (0.0, 0.1, 0)],
+)
+def test_whole_ticks_rounds_a_duration_up_to_whole_ticks(duration_s, period_s, ticks):
+    assert whole_ticks(duration_s, period_s) == ticks

@@ -170,16 +170,24 @@ def identification_request(args: argparse.Namespace) -> IdentificationRequest:
     )
 
 
-# Flags the Hammerstein fit has no use for: it judges simulation from rest on the record as
-# recorded, in the recording's own units (A and m).
-_NOT_FOR_HAMMERSTEIN = ("--detrend", "--k-step", "--initial-state", "--input-unit", "--output-unit")
+# Flags the Hammerstein fit has no use for (it judges simulation from rest on the record as
+# recorded, in the recording's own units, A and m), with the value each has when not given.
+_NOT_FOR_HAMMERSTEIN = {
+    "--detrend": "mean",
+    "--k-step": None,
+    "--initial-state": "estimate",
+    "--input-unit": None,
+    "--output-unit": None,
+}
 
 
 def _run_hammerstein(args: argparse.Namespace) -> int:
-    """`maskless identify --method hammerstein`; a flag it would ignore is refused by name."""
-    given = getattr(args, "given_flags", frozenset())
-    for flag in _NOT_FOR_HAMMERSTEIN:
-        if flag in given:
+    """`maskless identify --method hammerstein`; a flag it would ignore is refused by name.
+
+    Judged by the parsed values, so an abbreviated flag (``--k-st``) is refused too.
+    """
+    for flag, unset in _NOT_FOR_HAMMERSTEIN.items():
+        if getattr(args, flag.removeprefix("--").replace("-", "_")) != unset:
             raise ConfigError(
                 f"{flag}: not used by --method hammerstein (it fits and judges the record as "
                 "recorded, by simulation from rest, in the recording's units)"

@@ -11,8 +11,10 @@ An alpha-beta tracker follows the readings' level and pace (change per tick). Ea
 residual against the tracker's prediction feeds two one-sided CUSUMs (Page 1954), one for rises
 and one for falls, each less an allowance per tick: ``drift_pa``, plus ``per_current_pa_per_a``
 per ampere the commands changed by up to the tick before (the latest change fully, the earlier
-ones fading by ``COMMAND_FADE`` a tick: a command passed on at a tick reaches the pressure the
-supervisor reads at the next, moves it at once, then for a few ticks as the bladder follows). A sum
+ones fading by ``COMMAND_FADE`` a tick: a command passed on at a tick moves the valve's spool at
+the plant's next step and the pressure the supervisor reads at the one after, then for a few
+ticks as the bladder follows; counted from the tick before, rather than from this one, the
+changes gave fewer false alarms on the replay the gains were chosen on). A sum
 above ``alarm_pa`` is a jump. While a sum is above zero the tracker coasts (it predicts without
 correcting), so a step stays in the residuals instead of being tracked away. A reading that is no
 number counts as the prediction, a residual of zero (the supervisor vents on it:

@@ -32,7 +32,8 @@ Each reason has its safe action (``SAFE_ACTIONS``):
   holding and 4.3 mm with the loop on, assets/faults/inlet-stuck-open.yaml).
 - ``inlet_not_shut`` (continue): the inlet has been commanded shut for ``shut_inlet.hold_s`` and
   the pressurised bladder has not lost air (``shut_inlet_check``): something fills it, an inlet
-  stuck open. The loop goes on, as for ``pressure_jump``: the outlet is what can still fight it.
+  stuck open. The loop goes on, as for ``pressure_jump``: the outlet is what can still fight it
+  (the paper's LQG drives no outlet; its beam stays held).
 - ``overpressure`` (vent): the bladder's gauge pressure (its sensor) is above
   ``max_gauge_pressure_pa``, or the sensor reads no number.
 
@@ -92,6 +93,7 @@ from maskless.systems.named_symbolic_system import (
     building_expressions,
     diagram_form,
 )
+from maskless.systems.units import whole_ticks
 
 CONTINUE, HOLD, VENT = "continue", "hold", "vent"
 # Each reason and its safe action (the module docstring says why).
@@ -284,7 +286,7 @@ def add_safety_supervisor(
     )
 
     def ticks(limit_s: float) -> float:
-        return float(math.ceil(limit_s / period_s - 1e-9))
+        return float(whole_ticks(limit_s, period_s))
 
     beam_allowed = Variable("beam_allowed")
     pressure_level, pressure_pace = Variable("pressure_level_pa"), Variable("pressure_pace_pa")
@@ -314,9 +316,9 @@ def add_safety_supervisor(
     at_full_inlet = inlet_out >= inlet_saturation_a
     watching = elapsed >= ticks(config.start_grace_s)
     # The pressure checks judge the loop's own commands: not while the supervisor itself moves
-    # the air (holding or venting).
-    commands_in_charge = logical_and(logical_not(supervising), watching)
-    # From the third tick: the tracker starts at the first reading and has a pace from the second.
+    # the air (holding or venting); and from the third tick (the tracker starts at the first
+    # reading and has a pace from the second).
+    commands_tracked = logical_and(logical_and(logical_not(supervising), watching), elapsed >= 2)
     pressure_check = pace_check(
         config.pressure_pace,
         level=pressure_level,
@@ -324,12 +326,11 @@ def add_safety_supervisor(
         rise=pressure_rise,
         fall=pressure_fall,
         reading=pressure,
-        # A command passed on now reaches the pressure read at the next tick.
+        # The commands' changes up to the tick before (pressure_pace_check says why).
         command_activity_a=last_activity,
         first=elapsed < 0.5,
         watched=logical_and(
-            logical_and(commands_in_charge, elapsed >= 2),
-            _within(estimated - reference, -tolerance_m, tolerance_m),
+            commands_tracked, _within(estimated - reference, -tolerance_m, tolerance_m)
         ),
     )
     shut_check = shut_inlet_check(
@@ -337,11 +338,11 @@ def add_safety_supervisor(
         period_s=period_s,
         shut_ticks=shut_ticks,
         start_level=shut_start,
-        # The tracker's level as of the tick before, the command passed on then: both lag the
-        # reading by a tick, and the state costs nothing to evaluate again.
+        # The tracker's level as of the tick before (the state costs nothing to evaluate again),
+        # and the command passed on then.
         level=pressure_level,
         inlet_command_a=last_inlet,
-        watched=commands_in_charge,
+        watched=commands_tracked,
     )
     seen = tracks_used > 0.5
     failing = {

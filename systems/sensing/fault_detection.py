@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from scipy.special import erfinv
 
 from maskless.systems.config_loading import UNSET, refuse_out_of_range
+from maskless.systems.units import whole_ticks
 
 # The flags each local filter reports, in its ``health`` output's order.
 TRACK_FLAGS = ("stale", "rejecting", "stuck")
@@ -65,7 +66,7 @@ def nis_bound(probability: float) -> float:
 
 def frames_in(duration_s: float, frame_rate_hz: float) -> int:
     """Whole frames in ``duration_s`` at ``frame_rate_hz``, at least one."""
-    return max(1, math.ceil(duration_s * frame_rate_hz - 1e-9))
+    return max(1, whole_ticks(duration_s, 1.0 / frame_rate_hz))
 
 
 def validate_fault_detection(config: FaultDetectionConfig) -> None:

@@ -15,8 +15,6 @@ from maskless.analysis.identification.fit_metrics import fit_percent
 from maskless.analysis.identification.hammerstein import (
     estimate_hammerstein,
     estimate_linear_arx,
-    polynomial_reflections,
-    reflection_polynomial,
 )
 from maskless.diagrams.scenario import load_scenario
 from maskless.diagrams.valve_level_experiment import (
@@ -160,17 +158,6 @@ def test_bad_arguments_are_one_line_naming_the_argument(change, message):
         arguments["y"] = y[: arguments["u"].shape[0]]
     with pytest.raises(ValueError, match=message):
         estimate_hammerstein(**arguments)
-
-
-def test_reflection_coefficients_inside_one_give_a_stable_polynomial_and_back():
-    rng = np.random.default_rng(0)
-    for _ in range(20):
-        reflections = rng.uniform(-0.999, 0.999, size=4)
-        a = reflection_polynomial(reflections)
-        assert np.all(np.abs(np.roots(np.concatenate([[1.0], a]))) < 1.0)
-        np.testing.assert_allclose(polynomial_reflections(a), reflections, atol=1e-8)
-    # A second-order polynomial's last reflection coefficient is its last coefficient.
-    assert reflection_polynomial([0.3, 0.5])[-1] == pytest.approx(0.5)
 
 
 def test_the_model_simulates_as_its_state_space_and_settles_at_its_static_curve():

@@ -147,8 +147,8 @@ def read_record(
             raise RecordError(
                 f"{label('ts')} {request.ts}: the recording's samples are {period_s:.6g} s apart"
             )
-        topic, _, fields = input_field.rpartition(":")
-        input_units = tuple(_field_unit(f"{topic}:{field}") for field in fields.split(","))
+        topic, fields = _named_fields(input_field)
+        input_units = tuple(_field_unit(f"{topic}:{field}") for field in fields)
         units = (input_units[0] if u.ndim == 1 else input_units, _field_unit(output_field))
         return u, y, units
     if request.output is None:
@@ -173,7 +173,14 @@ def _input_columns(request: IdentificationRequest) -> list[str | None]:
     column = request.input_column
     if column is None:
         return [None]
-    return column.rpartition(":")[2].split(",") if "," in column else [column]
+    names = _named_fields(column)[1]
+    return names if len(names) > 1 else [column]
+
+
+def _named_fields(column: str) -> tuple[str, list[str]]:
+    """(topic, names) of "TOPIC:A,B" (MCAP fields) or ("", names) of "A,B" (CSV columns)."""
+    topic, _, names = column.rpartition(":")
+    return topic, names.split(",")
 
 
 def _stack_columns(path: Path, columns: list[str]) -> np.ndarray:

@@ -6,6 +6,15 @@ levels (``diagrams.valve_level_experiment``: 0 to --top-ma on each valve, strati
 height (cameras' noise, latency and filters included). The first --estimation fraction is
 fitted, the rest held out.
 
+With --targeted-share F, the record is designed sequentially
+(``valve_level_experiment.run_sequential_experiment``): the last F of the fitted part is replaced
+by levels inside each valve's starting-current interval as a Hammerstein fit of the record before
+it finds it (in --rounds parts, each designed from the record up to it), held --targeted-hold-s
+each, approached alternately from below and above (a --coverage-share of them over the rest of
+each curve, from the interval's top to --top-ma); the rest of the record, the held-out part
+included, is the same as without it, and the total length the same. F = 0 (the default) is the
+random design alone, bit for bit.
+
 Figures, against the issue's targets:
 
 - each valve's estimated starting current against the plant's (target: within 5 mA), and the
@@ -33,7 +42,11 @@ import numpy as np
 from maskless.analysis.identification.fit_metrics import fit_percent
 from maskless.analysis.identification.hammerstein import estimate_hammerstein, estimate_linear_arx
 from maskless.diagrams.scenario import load_scenario
-from maskless.diagrams.valve_level_experiment import random_level_currents, run_two_valve_experiment
+from maskless.diagrams.valve_level_experiment import (
+    random_level_currents,
+    run_sequential_experiment,
+    run_two_valve_experiment,
+)
 from maskless.systems.plant.pneumatic_physics import LIFT
 from maskless.systems.plant.pneumatic_plant import equilibrium_state
 from maskless.systems.units import a_to_ma, ma_to_a
@@ -62,26 +75,51 @@ def plant_static_curves(parameters, currents_a, spool_offset_a=0.0) -> np.ndarra
 
 
 def pneumatic_record(config, args, seed):
-    """(currents (N, 2) in mA, fused height (N,) in m, simulation wall time in s) of one seed.
+    """(currents (N, 2) in mA, fused height (N,) in m, simulation wall time in s, design rounds).
 
     The design reads the valves' datasheet range only (0 to --top-ma), never the plant's own
-    starting current.
+    starting current; a sequential design (--targeted-share) reads the record too. Its rounds:
+    per round the starting-current intervals (mA) it targeted, one (2, 2) list each; else none.
     """
     period_s = config.offset_free_lqg.sample_period_s
     samples = round(args.duration_s / period_s)
+    tops = (ma_to_a(args.top_ma),) * 2
     currents = random_level_currents(
         samples,
         period_s,
-        (ma_to_a(args.top_ma),) * 2,
+        tops,
         (args.hold_s[0], args.hold_s[1]),
         seed,
         args.arrangement,
         stratified=not args.independent_levels,
     )
     started = time.perf_counter()
-    applied, height_m, _ = run_two_valve_experiment(config, currents, period_s)
+    if args.targeted_share == 0.0:
+        applied, height_m, _ = run_two_valve_experiment(config, currents, period_s)
+        rounds = []
+    else:
+        split = round(args.estimation * samples)
+        first = round((1.0 - args.targeted_share) * split)
+
+        def start_intervals_a(u_a, y):
+            fit = estimate_hammerstein(u_a, y, args.order, period_s, input_delay_samples=args.delay)
+            return fit.starting_current_spread()
+
+        applied, height_m, _, intervals = run_sequential_experiment(
+            config,
+            currents,
+            period_s,
+            tops,
+            (first, split),
+            start_intervals_a,
+            args.targeted_hold_s or args.hold_s[1],
+            seed,
+            args.rounds,
+            args.coverage_share,
+        )
+        rounds = [a_to_ma(found).tolist() for found in intervals]
     # mA: the model's map is read in the record's units.
-    return a_to_ma(applied.T), height_m, time.perf_counter() - started
+    return a_to_ma(applied.T), height_m, time.perf_counter() - started, rounds
 
 
 def valve_figures(fit, parameters) -> dict:
@@ -188,12 +226,27 @@ def measure(args) -> dict:
     config = load_scenario()
     parameters = config.pneumatic
     period_s = config.offset_free_lqg.sample_period_s
+    sequential = {}
+    if args.targeted_share > 0.0:
+        sequential = {
+            "targeted_share": args.targeted_share,
+            "rounds": args.rounds,
+            "coverage_share": args.coverage_share,
+            "targeted_hold_s": args.targeted_hold_s or args.hold_s[1],
+        }
     runs = []
     for seed in args.seeds:
-        u, y, simulated_s = pneumatic_record(config, args, seed)
+        u, y, simulated_s, rounds = pneumatic_record(config, args, seed)
         run = measure_record(u, y, period_s, parameters, args)
+        design = {"targeted_start_intervals_ma": rounds} if rounds else {}
         runs.append(
-            {"seed": seed, "samples": int(u.shape[0]), "simulation_wall_s": simulated_s, **run}
+            {
+                "seed": seed,
+                "samples": int(u.shape[0]),
+                "simulation_wall_s": simulated_s,
+                **design,
+                **run,
+            }
         )
     return {
         "benchmark": "hammerstein",
@@ -205,6 +258,7 @@ def measure(args) -> dict:
             "top_ma": args.top_ma,
             "hold_s": list(args.hold_s),
             "stratified_levels": not args.independent_levels,
+            **sequential,
         },
         "order": args.order,
         "input_delay_samples": args.delay,
@@ -235,9 +289,32 @@ def main() -> None:
         help="each level drawn independently (the earlier design), not stratified",
     )
     parser.add_argument(
+        "--targeted-share",
+        type=float,
+        default=0.0,
+        help="the share of the fitted part designed sequentially (0: none, the random design)",
+    )
+    parser.add_argument(
+        "--rounds", type=int, default=1, help="sequential designs of the targeted share"
+    )
+    parser.add_argument(
+        "--coverage-share",
+        type=float,
+        default=0.0,
+        help="the share of targeted holds over the rest of each curve, above its start's interval",
+    )
+    parser.add_argument(
+        "--targeted-hold-s",
+        type=float,
+        default=None,
+        help="each targeted level's hold (s); default the longest of --hold-s",
+    )
+    parser.add_argument(
         "--seeds", type=int, nargs="+", default=[0], help="one record and fit per seed"
     )
     args = parser.parse_args()
+    if not 0.0 <= args.targeted_share < 1.0:
+        raise ValueError(f"--targeted-share = {args.targeted_share}: expected 0 <= share < 1")
     print(json.dumps(measure(args)))
 
 

@@ -32,16 +32,28 @@ the head), with its two valve commands from the designed signals.
 ``excitation.multilevel_prbs`` draws levels from a grid for one valve at a time; its split range
 (``valve_pair_excitation``) never applies a current between 0 and a valve's starting current,
 where the map's flat part is, so this design draws its own: continuous levels.
+
+**Sequential design** (``run_sequential_experiment``): uniform levels put only a level or two
+near each valve's start in an hour, and a valve driven up from shut rests at the lower edge of
+its play band, so the start reads high by half the band. So part of the record is designed from
+what the record before it shows: the levels so far are fitted, and the next stretch holds each
+valve, in turn, at levels inside the interval of starting currents that fit cannot tell apart
+(``targeted_level_currents``), approached alternately from below (from shut) and from above (a
+sample at the valve's top current first), so the hysteresis averages out. The stretch is taken
+from the random levels, so fewer of them reach the curve's top; a share of the targeted holds
+can go there instead (``coverage_share``: levels from the interval's top to the valve's top
+current). It reads the record and the datasheet range only.
 """
 
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 
 from maskless.diagrams.excitation_run import build_excitation_loop
 from maskless.diagrams.scenario import Scenario
 from maskless.diagrams.simulation import SimulationRun, simulate_loop
-from maskless.systems.control.excitation import ExcitationSignal, random_holds
+from maskless.systems.control.excitation import ExcitationSignal, hold_samples, random_holds
 
 ARRANGEMENTS = ("split_range", "independent")
 # Equal parts of a valve's range that each block of its levels visits once (``_stratified``).
@@ -106,6 +118,165 @@ def _stratified(rng, count: int) -> np.ndarray:
     blocks = -(-count // _STRATA)
     order = np.concatenate([rng.permutation(_STRATA) for _ in range(blocks)])[:count]
     return (order + rng.uniform(0.0, 1.0, size=count)) / _STRATA
+
+
+def targeted_level_currents(
+    samples: int,
+    sample_period_s: float,
+    top_currents_a: tuple[float, float],
+    start_intervals_a,
+    hold_s: float,
+    seed: int,
+    coverage_share: float = 0.0,
+) -> np.ndarray:
+    """(2, samples) currents (A): each valve in turn held inside its starting current's interval.
+
+    The inlet and the outlet take turns (the other shut, as in ``split_range``), each hold
+    ``hold_s`` long at a level drawn stratified over its valve's interval (``_stratified``);
+    with ``coverage_share``, that share of each valve's holds (spread evenly among the others)
+    is drawn stratified over the rest of its curve instead, from the interval's top to the
+    valve's top current, so a record whose random part is cut short still settles there.
+    Within each of those two kinds, a valve's holds alternate between approached from below (it
+    was shut during the other's hold) and from above (the hold's first sample at the valve's top
+    current, which pushes the spool past any play band the datasheet allows, then the level), so
+    half its levels rest at each edge of the band.
+
+    Args:
+        samples: the stretch's length.
+        sample_period_s: the period of a sample (s).
+        top_currents_a: each valve's highest current (A), the datasheet range's top.
+        start_intervals_a: (2, 2) each valve's (lowest, highest) starting current the record so
+            far cannot tell apart (A), within [0, top].
+        hold_s: how long each level is held (s): long enough to settle.
+        seed: the random generator's seed (same seed, same signal).
+        coverage_share: the share of holds above the interval, 0 to 1 (0: none, bit for bit
+            the design without it).
+
+    Raises:
+        ValueError: naming the argument out of range.
+    """
+    if isinstance(samples, bool) or not (isinstance(samples, int) and samples >= 2):
+        raise ValueError(f"samples = {samples!r}: expected an integer >= 2")
+    if not 0.0 <= coverage_share <= 1.0:
+        raise ValueError(f"coverage_share = {coverage_share!r}: expected 0 to 1")
+    tops, intervals = _checked_ranges(top_currents_a, start_intervals_a)
+    # At least two samples: the approach from above and the level.
+    hold = max(hold_samples((hold_s, hold_s), sample_period_s)[0], 2)
+    rng = np.random.default_rng(seed)
+    per_valve = -(-samples // (2 * hold))
+    order = np.arange(per_valve)
+    covering = np.floor((order + 1) * coverage_share) - np.floor(order * coverage_share) == 1
+    levels = np.zeros((2, per_valve))
+    for valve, (low, high) in enumerate(intervals):
+        levels[valve, ~covering] = low + (high - low) * _stratified(rng, int((~covering).sum()))
+    # Each kind of hold alternates its approach on its own, so both kinds see both edges.
+    rank = np.where(covering, np.cumsum(covering), np.cumsum(~covering)) - 1
+    from_above = (rank + rng.integers(2)) % 2 == 1
+    if covering.any():
+        for valve, (high, top) in enumerate(zip(intervals[:, 1], tops, strict=True)):
+            levels[valve, covering] = high + (top - high) * _stratified(rng, int(covering.sum()))
+    currents = np.zeros((2, 2 * per_valve * hold))
+    for k in range(per_valve):
+        for valve in (0, 1):
+            begin = (2 * k + valve) * hold
+            currents[valve, begin : begin + hold] = levels[valve, k]
+            if from_above[k]:
+                currents[valve, begin] = tops[valve]
+    return currents[:, :samples]
+
+
+def _checked_ranges(top_currents_a, start_intervals_a) -> tuple[np.ndarray, np.ndarray]:
+    """(tops (2,), intervals (2, 2)) as arrays, each interval ordered and within [0, top]."""
+    tops = np.asarray(top_currents_a, dtype=float)
+    if tops.shape != (2,) or not np.all(np.isfinite(tops) & (tops > 0)):
+        raise ValueError(f"top_currents_a = {top_currents_a}: expected a positive current each")
+    intervals = np.asarray(start_intervals_a, dtype=float)
+    if intervals.shape != (2, 2) or not (
+        np.all(np.isfinite(intervals))
+        and np.all(intervals[:, 0] >= 0.0)
+        and np.all(intervals[:, 0] <= intervals[:, 1])
+        and np.all(intervals[:, 1] <= tops)
+    ):
+        raise ValueError(
+            f"start_intervals_a = {start_intervals_a}: expected (2, 2) (lowest, highest) per "
+            "valve with 0 <= lowest <= highest <= its top current"
+        )
+    return tops, intervals
+
+
+def run_sequential_experiment(
+    config: Scenario,
+    currents_a: np.ndarray,
+    sample_period_s: float,
+    top_currents_a: tuple[float, float],
+    targeted: tuple[int, int],
+    start_intervals_of: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    hold_s: float,
+    seed: int,
+    rounds: int = 1,
+    coverage_share: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray, SimulationRun, list[np.ndarray]]:
+    """``run_two_valve_experiment`` with samples ``targeted`` designed from the record before them.
+
+    The stretch is cut into ``rounds`` equal parts; before each, the plant runs the currents up
+    to it, ``start_intervals_of(currents (N, 2) as applied in A, fused height (N,) in m)`` gives
+    each valve's starting-current interval (2, 2) in A, and the part gets
+    ``targeted_level_currents`` inside it (clipped to [0, top]; seeded ``seed`` plus the round).
+    Then the whole record runs once more. The same scenario and seed make every run's first
+    samples the same, so the design read nothing the returned record does not hold; a run whose
+    first samples differ raises RuntimeError.
+
+    Args:
+        config: the scenario (its seed seeds the noise).
+        currents_a: (2, N) the designed currents (A) outside the stretch.
+        sample_period_s: the period of a sample (s).
+        top_currents_a: each valve's highest current (A), the datasheet range's top.
+        targeted: (first, end) samples of the stretch to design, 2 <= first < end <= N.
+        start_intervals_of: the fit of the record so far (see above).
+        hold_s: how long each targeted level is held (s).
+        seed: the targeted levels' seed.
+        rounds: designs of the stretch, each from the record up to its part.
+        coverage_share: the share of targeted holds over the rest of each curve (as there).
+
+    Returns:
+        (currents as applied (2, N), fused height (N,), the run, each round's intervals (A)).
+
+    Raises:
+        ValueError: naming the argument out of range.
+    """
+    currents = np.array(currents_a, dtype=float)
+    first, end = targeted
+    if not (
+        currents.ndim == 2 and currents.shape[0] == 2 and 2 <= first < end <= currents.shape[1]
+    ):
+        raise ValueError(
+            f"targeted = {targeted}: expected 2 <= first < end <= {currents.shape[-1]} samples"
+        )
+    if isinstance(rounds, bool) or not (isinstance(rounds, int) and 1 <= rounds <= end - first):
+        raise ValueError(f"rounds = {rounds!r}: expected an integer from 1 to the stretch's length")
+    tops = np.asarray(top_currents_a, dtype=float)
+    bounds = np.linspace(first, end, rounds + 1).round().astype(int)
+    seen, intervals = [], []
+    for round_index, (begin, stop) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
+        applied, fused, _ = run_two_valve_experiment(config, currents[:, :begin], sample_period_s)
+        found = np.clip(np.asarray(start_intervals_of(applied.T, fused), float), 0.0, tops[:, None])
+        intervals.append(found)
+        seen.append(fused)
+        currents[:, begin:stop] = targeted_level_currents(
+            int(stop - begin),
+            sample_period_s,
+            tuple(tops),
+            found,
+            hold_s,
+            seed + round_index,
+            coverage_share,
+        )
+    applied, fused, run = run_two_valve_experiment(config, currents, sample_period_s)
+    for earlier in seen:
+        # The design's causality rests on this: each round saw a prefix of the final record.
+        if not np.array_equal(fused[: earlier.size], earlier):
+            raise RuntimeError("a design round saw a record the final run does not reproduce")
+    return applied, fused, run, intervals
 
 
 def run_two_valve_experiment(

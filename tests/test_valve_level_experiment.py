@@ -1,9 +1,14 @@
-"""The two-valve random-level design: its ranges, its split, its seed; no plant truth read."""
+"""The two-valve level designs: ranges, split, seed, the sequential stretch; no plant truth read."""
 
 import numpy as np
 import pytest
 
-from maskless.diagrams.valve_level_experiment import random_level_currents
+from maskless.diagrams.scenario import load_scenario
+from maskless.diagrams.valve_level_experiment import (
+    random_level_currents,
+    run_sequential_experiment,
+    targeted_level_currents,
+)
 from maskless.systems.control.excitation import random_holds
 
 TS = 0.1
@@ -86,3 +91,127 @@ def test_bad_arguments_are_one_line_naming_the_argument(arguments, message):
     }
     with pytest.raises(ValueError, match=message):
         random_level_currents(**fields)
+
+
+INTERVALS = ((0.055, 0.075), (0.030, 0.110))
+
+
+def _targeted(seed=0, samples=8000, hold_s=6.0):
+    return targeted_level_currents(samples, TS, TOPS, INTERVALS, hold_s, seed)
+
+
+def _holds(currents, valve):
+    """(first sample, level) of each run of ``valve``'s current held above 0 (its last sample)."""
+    row = currents[valve]
+    driven = np.flatnonzero(row > 0.0)
+    firsts = driven[np.diff(np.r_[-2, driven]) > 1]
+    lasts = driven[np.diff(np.r_[driven, row.size + 2]) > 1]
+    return firsts, row[lasts]
+
+
+def test_targeted_levels_take_turns_inside_each_interval_approached_from_both_sides():
+    currents = _targeted()
+    assert not np.any((currents[0] > 0.0) & (currents[1] > 0.0))
+    for valve, ((low, high), top) in enumerate(zip(INTERVALS, TOPS, strict=True)):
+        firsts, levels = _holds(currents, valve)
+        assert np.all((levels >= low) & (levels <= high))
+        # Each hold is 60 samples, its first the top current (from above) or the level (below).
+        np.testing.assert_array_equal(np.diff(firsts), 120)
+        from_above = currents[valve, firsts] == top
+        np.testing.assert_array_equal(from_above | (currents[valve, firsts] == levels), True)
+        assert np.all(from_above[1:] != from_above[:-1])
+        # Shut before each hold, so a hold without the pulse is approached from below.
+        assert np.all(currents[valve, firsts[firsts > 0] - 1] == 0.0)
+        eighths = np.floor((levels - low) / (high - low) * 8).astype(int)
+        for block in eighths[: eighths.size // 8 * 8].reshape(-1, 8):
+            np.testing.assert_array_equal(np.sort(block), np.arange(8))
+
+
+def test_a_coverage_share_puts_every_other_hold_over_the_rest_of_the_curve():
+    currents = targeted_level_currents(8000, TS, TOPS, INTERVALS, 6.0, 0, coverage_share=0.5)
+    for valve, ((low, high), top) in enumerate(zip(INTERVALS, TOPS, strict=True)):
+        firsts, levels = _holds(currents, valve)
+        inside, above = levels[0::2], levels[1::2]
+        assert np.all((inside >= low) & (inside <= high))
+        assert np.all((above >= high) & (above <= top))
+        assert np.mean(above > (high + top) / 2) == pytest.approx(0.5, abs=0.1)
+        from_above = currents[valve, firsts] == top
+        for kind in (from_above[0::2], from_above[1::2]):
+            assert np.all(kind[1:] != kind[:-1])
+
+
+def test_targeted_levels_are_seeded():
+    np.testing.assert_array_equal(_targeted(seed=3), _targeted(seed=3))
+    assert not np.array_equal(_targeted(seed=3), _targeted(seed=4))
+
+
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        ({"samples": 1}, "samples = 1"),
+        ({"start_intervals_a": ((0.07, 0.06), (0.0, 0.1))}, "start_intervals_a"),
+        ({"start_intervals_a": ((0.0, 0.2), (0.0, 0.1))}, "start_intervals_a"),
+        ({"top_currents_a": (0.19, 0.0)}, "top_currents_a"),
+        ({"hold_s": 0.0}, "hold_s must satisfy"),
+        ({"coverage_share": 1.5}, "coverage_share = 1.5"),
+    ],
+)
+def test_bad_targeted_arguments_name_the_argument(arguments, message):
+    fields = {
+        "samples": 100,
+        "sample_period_s": TS,
+        "top_currents_a": TOPS,
+        "start_intervals_a": INTERVALS,
+        "hold_s": 2.0,
+        "seed": 0,
+        **arguments,
+    }
+    with pytest.raises(ValueError, match=message):
+        targeted_level_currents(**fields)
+
+
+def test_a_sequential_design_reads_only_the_record_before_each_round():
+    config = load_scenario()
+    period_s = config.offset_free_lqg.sample_period_s
+    planned = random_level_currents(900, period_s, TOPS, (2.0, 6.0), 1)
+    seen = []
+
+    def start_intervals_of(u, y):
+        seen.append((u.copy(), y.copy()))
+        return INTERVALS
+
+    applied, fused, _, intervals = run_sequential_experiment(
+        config, planned, period_s, TOPS, (300, 700), start_intervals_of, 4.0, 0, rounds=2
+    )
+    # Each round saw the final record up to its part, and nothing after.
+    assert [u.shape[0] for u, _ in seen] == [300, 500]
+    for u, y in seen:
+        np.testing.assert_array_equal(u, applied[:, : u.shape[0]].T)
+        np.testing.assert_array_equal(y, fused[: y.size])
+    # Outside the stretch the planned currents run; inside, targeted levels from each round.
+    np.testing.assert_array_equal(applied[:, :300], planned[:, :300])
+    np.testing.assert_array_equal(applied[:, 700:], planned[:, 700:])
+    for begin, stop, seed in ((300, 500, 0), (500, 700, 1)):
+        expected = targeted_level_currents(stop - begin, period_s, TOPS, INTERVALS, 4.0, seed)
+        np.testing.assert_array_equal(applied[:, begin:stop], expected)
+    np.testing.assert_array_equal(intervals, [INTERVALS] * 2)
+
+
+@pytest.mark.parametrize(
+    "arguments, message",
+    [({"targeted": (300, 901)}, "targeted = "), ({"rounds": 0}, "rounds = 0")],
+)
+def test_bad_sequential_arguments_name_the_argument(arguments, message):
+    fields = {
+        "config": None,
+        "currents_a": np.zeros((2, 900)),
+        "sample_period_s": TS,
+        "top_currents_a": TOPS,
+        "targeted": (300, 700),
+        "start_intervals_of": None,
+        "hold_s": 4.0,
+        "seed": 0,
+        **arguments,
+    }
+    with pytest.raises(ValueError, match=message):
+        run_sequential_experiment(**fields)

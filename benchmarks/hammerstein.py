@@ -1,7 +1,7 @@
 """Hammerstein identification on a pneumatic-plant excitation recording, one JSON line.
 
 The record: the shipped scenario's pneumatic plant driven open loop on both valves by random
-levels (``diagrams.valve_level_experiment``: 0 to --top-ma on each valve, stratified unless
+levels (``systems.control.valve_level_design``: 0 to --top-ma on each valve, stratified unless
 --independent-levels, held --hold-s, seeded), the output the fused camera estimate of the head
 height (cameras' noise, latency and filters included). The first --estimation fraction is
 fitted, the rest held out.
@@ -43,10 +43,10 @@ from maskless.analysis.identification.fit_metrics import fit_percent
 from maskless.analysis.identification.hammerstein import estimate_hammerstein, estimate_linear_arx
 from maskless.diagrams.scenario import load_scenario
 from maskless.diagrams.valve_level_experiment import (
-    random_level_currents,
     run_sequential_experiment,
     run_two_valve_experiment,
 )
+from maskless.systems.control.valve_level_design import random_level_currents
 from maskless.systems.plant.pneumatic_physics import LIFT
 from maskless.systems.plant.pneumatic_plant import equilibrium_state
 from maskless.systems.units import a_to_ma, ma_to_a

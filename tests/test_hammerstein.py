@@ -17,11 +17,9 @@ from maskless.analysis.identification.hammerstein import (
     estimate_linear_arx,
 )
 from maskless.diagrams.scenario import load_scenario
-from maskless.diagrams.valve_level_experiment import (
-    random_level_currents,
-    run_two_valve_experiment,
-)
+from maskless.diagrams.valve_level_experiment import run_two_valve_experiment
 from maskless.errors import ModelError
+from maskless.systems.control.valve_level_design import random_level_currents
 from maskless.systems.hammerstein_model import HammersteinModel
 from maskless.systems.plant.pneumatic_physics import LIFT
 from maskless.systems.plant.pneumatic_plant import equilibrium_state

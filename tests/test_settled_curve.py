@@ -14,7 +14,7 @@ from maskless.analysis.identification.settled_curve import (
     fit_static_curves,
     settled_levels,
 )
-from maskless.diagrams.valve_level_experiment import random_level_currents
+from maskless.systems.control.valve_level_design import random_level_currents
 from maskless.systems.hammerstein_model import HammersteinModel
 from maskless.systems.plant.valve_map import ValveMap
 

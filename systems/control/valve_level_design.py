@@ -1,0 +1,189 @@
+"""Amplitude-rich currents for both valves, for identifying their static maps (Hammerstein).
+
+A binary or small-amplitude signal sees one slope of a valve's curve; a Hammerstein fit needs the
+whole curve, from below the starting current to past saturation. So each valve is driven through
+random levels spread uniformly over ``[0, top]``, each held for a random time comparable to the
+plant's time constants (so the head settles often enough to show the steady curve, and moves
+often enough to show the dynamics). The hold lengths are drawn as ``excitation.multilevel_prbs``
+draws its own (``excitation.random_holds``). ``maskless excite --signal valve-levels`` runs it.
+
+The design knows only what a valve's datasheet states, its whole current range (0 to ``top``,
+past the largest rated current to show the flat top): never the starting current the fit is to
+find. Uniform levels are the design that favours no guess of it. They are stratified: each
+valve's levels come in blocks of eight, one from each eighth of its range in random order, so
+an hour (some 37 levels per valve in a split range, about half of them held long enough to
+settle) leaves no stretch of the curve unvisited, as independent draws often do.
+
+Two arrangements:
+
+- ``split_range``: at each level one valve (inlet or outlet), or neither, is driven over its whole
+  range while the other is shut (0 A, below any starting current). That is how the controller's
+  split-range allocation uses the valves (never both open), where the plant is a sum of one
+  valve's effect at a time and each valve's curve is its curve with the other shut. The levels
+  where neither is driven, and the driven valve's levels below its start, show the rest output
+  the maps' flat parts must explain.
+- ``independent``: both valves draw their levels independently, so both are often open together;
+  the bladder's pressure then balances both flows at once, which no sum of per-valve maps
+  describes exactly.
+
+``excitation.multilevel_prbs`` draws levels from a grid for one valve at a time; its split range
+(``valve_pair_excitation``) never applies a current between 0 and a valve's starting current,
+where the map's flat part is, so this design draws its own: continuous levels.
+
+**Targeted levels** (``targeted_level_currents``): each valve in turn held inside an interval of
+starting currents, approached alternately from below and from above, so its hysteresis averages
+out; ``diagrams.valve_level_experiment.run_sequential_experiment`` designs part of a record with
+them from the record before it (why, there).
+"""
+
+import numpy as np
+
+from maskless.systems.control.excitation import hold_samples, random_holds
+
+ARRANGEMENTS = ("split_range", "independent")
+# Equal parts of a valve's range that each block of its levels visits once (``_stratified``).
+_STRATA = 8
+
+
+def random_level_currents(
+    samples: int,
+    sample_period_s: float,
+    top_currents_a: tuple[float, float],
+    hold_range_s: tuple[float, float],
+    seed: int,
+    arrangement: str = "split_range",
+    stratified: bool = True,
+) -> np.ndarray:
+    """(2, samples) inlet and outlet currents (A): random levels held for random times.
+
+    Args:
+        samples: the record's length.
+        sample_period_s: the period of a sample (s).
+        top_currents_a: each valve's highest level (A): past its rated range to show the flat top.
+        hold_range_s: (shortest, longest) time a level is held (s), drawn uniformly in whole
+            samples (``excitation.hold_samples``).
+        seed: the random generator's seed (same seed, same signal).
+        arrangement: one of ``ARRANGEMENTS`` (see the module docstring).
+        stratified: levels in blocks that visit every eighth of a valve's range (``_stratified``);
+            False: each level drawn independently (the earlier design, bit for bit).
+
+    Raises:
+        ValueError: naming the argument out of range.
+    """
+    if arrangement not in ARRANGEMENTS:
+        raise ValueError(f"arrangement = {arrangement!r}: expected one of {ARRANGEMENTS}")
+    if isinstance(samples, bool) or not (isinstance(samples, int) and samples >= 2):
+        raise ValueError(f"samples = {samples!r}: expected an integer >= 2")
+    if not all(np.isfinite(top) and top > 0 for top in top_currents_a):
+        raise ValueError(f"top_currents_a = {top_currents_a}: expected a positive current each")
+    rng = np.random.default_rng(seed)
+    holds = random_holds(rng, samples, hold_range_s, sample_period_s)
+    # Independent levels are drawn before the split, as the earlier design drew them.
+    levels = np.zeros((holds.size, 2))
+    if not stratified:
+        levels = rng.uniform(0.0, 1.0, size=(holds.size, 2)) * np.asarray(top_currents_a)
+    driven = np.ones((holds.size, 2), dtype=bool)
+    if arrangement == "split_range":
+        active = rng.integers(3, size=holds.size)  # the inlet, the outlet, or neither
+        driven = np.column_stack([active == 0, active == 1])
+    for valve, top in enumerate(top_currents_a):
+        if stratified:
+            levels[driven[:, valve], valve] = top * _stratified(rng, int(driven[:, valve].sum()))
+        levels[~driven[:, valve], valve] = 0.0
+    return np.repeat(levels, holds, axis=0)[:samples].T
+
+
+def _stratified(rng, count: int) -> np.ndarray:
+    """``count`` fractions of the range, uniform, in blocks that each visit every stratum once.
+
+    Each block of ``_STRATA`` levels is one uniform draw from each of ``_STRATA`` equal parts of
+    the range, in random order: i.i.d. levels leave gaps (a dozen settled levels of a valve can
+    miss a fifth of its range), and a gap is where the static curve is only guessed.
+    """
+    blocks = -(-count // _STRATA)
+    order = np.concatenate([rng.permutation(_STRATA) for _ in range(blocks)])[:count]
+    return (order + rng.uniform(0.0, 1.0, size=count)) / _STRATA
+
+
+def targeted_level_currents(
+    samples: int,
+    sample_period_s: float,
+    top_currents_a: tuple[float, float],
+    start_intervals_a,
+    hold_s: float,
+    seed: int,
+    coverage_share: float = 0.0,
+) -> np.ndarray:
+    """(2, samples) currents (A): each valve in turn held inside its starting current's interval.
+
+    The inlet and the outlet take turns (the other shut, as in ``split_range``), each hold
+    ``hold_s`` long at a level drawn stratified over its valve's interval (``_stratified``);
+    with ``coverage_share``, that share of each valve's holds (spread evenly among the others)
+    is drawn stratified over the rest of its curve instead, from the interval's top to the
+    valve's top current, so a record whose random part is cut short still settles there.
+    Within each of those two kinds, a valve's holds alternate between approached from below (it
+    was shut during the other's hold) and from above (the hold's first sample at the valve's top
+    current, which pushes the spool past any play band the datasheet allows, then the level), so
+    half its levels rest at each edge of the band.
+
+    Args:
+        samples: the stretch's length.
+        sample_period_s: the period of a sample (s).
+        top_currents_a: each valve's highest current (A), the datasheet range's top.
+        start_intervals_a: (2, 2) each valve's (lowest, highest) starting current the record so
+            far cannot tell apart (A), within [0, top].
+        hold_s: how long each level is held (s): long enough to settle.
+        seed: the random generator's seed (same seed, same signal).
+        coverage_share: the share of holds above the interval, 0 to 1 (0: none, bit for bit
+            the design without it).
+
+    Raises:
+        ValueError: naming the argument out of range.
+    """
+    if isinstance(samples, bool) or not (isinstance(samples, int) and samples >= 2):
+        raise ValueError(f"samples = {samples!r}: expected an integer >= 2")
+    if not 0.0 <= coverage_share <= 1.0:
+        raise ValueError(f"coverage_share = {coverage_share!r}: expected 0 to 1")
+    tops, intervals = _checked_ranges(top_currents_a, start_intervals_a)
+    # At least two samples: the approach from above and the level.
+    hold = max(hold_samples((hold_s, hold_s), sample_period_s)[0], 2)
+    rng = np.random.default_rng(seed)
+    per_valve = -(-samples // (2 * hold))
+    order = np.arange(per_valve)
+    covering = np.floor((order + 1) * coverage_share) - np.floor(order * coverage_share) == 1
+    levels = np.zeros((2, per_valve))
+    for valve, (low, high) in enumerate(intervals):
+        levels[valve, ~covering] = low + (high - low) * _stratified(rng, int((~covering).sum()))
+    # Each kind of hold alternates its approach on its own, so both kinds see both edges.
+    rank = np.where(covering, np.cumsum(covering), np.cumsum(~covering)) - 1
+    from_above = (rank + rng.integers(2)) % 2 == 1
+    if covering.any():
+        for valve, (high, top) in enumerate(zip(intervals[:, 1], tops, strict=True)):
+            levels[valve, covering] = high + (top - high) * _stratified(rng, int(covering.sum()))
+    currents = np.zeros((2, 2 * per_valve * hold))
+    for k in range(per_valve):
+        for valve in (0, 1):
+            begin = (2 * k + valve) * hold
+            currents[valve, begin : begin + hold] = levels[valve, k]
+            if from_above[k]:
+                currents[valve, begin] = tops[valve]
+    return currents[:, :samples]
+
+
+def _checked_ranges(top_currents_a, start_intervals_a) -> tuple[np.ndarray, np.ndarray]:
+    """(tops (2,), intervals (2, 2)) as arrays, each interval ordered and within [0, top]."""
+    tops = np.asarray(top_currents_a, dtype=float)
+    if tops.shape != (2,) or not np.all(np.isfinite(tops) & (tops > 0)):
+        raise ValueError(f"top_currents_a = {top_currents_a}: expected a positive current each")
+    intervals = np.asarray(start_intervals_a, dtype=float)
+    if intervals.shape != (2, 2) or not (
+        np.all(np.isfinite(intervals))
+        and np.all(intervals[:, 0] >= 0.0)
+        and np.all(intervals[:, 0] <= intervals[:, 1])
+        and np.all(intervals[:, 1] <= tops)
+    ):
+        raise ValueError(
+            f"start_intervals_a = {start_intervals_a}: expected (2, 2) (lowest, highest) per "
+            "valve with 0 <= lowest <= highest <= its top current"
+        )
+    return tops, intervals

@@ -1,0 +1,168 @@
+"""The two-valve level designs: ranges, split, seed, the targeted levels; no plant truth read."""
+
+import numpy as np
+import pytest
+
+from maskless.systems.control.excitation import random_holds
+from maskless.systems.control.valve_level_design import (
+    random_level_currents,
+    targeted_level_currents,
+)
+
+TS = 0.1
+TOPS = (0.19, 0.18)
+
+
+def _levels(arrangement="split_range", seed=0, samples=20000):
+    return random_level_currents(samples, TS, TOPS, (1.0, 10.0), seed, arrangement)
+
+
+def test_levels_span_each_valve_and_are_held_within_the_hold_range():
+    currents = _levels()
+    for row, top in zip(currents, TOPS, strict=True):
+        assert 0.0 <= row.min() < 0.01 and top - 0.01 < row.max() <= top
+    # Split-range holds that drive neither valve join up; independent levels always change.
+    independent = _levels("independent")
+    changes = np.flatnonzero(np.any(np.diff(independent, axis=1) != 0, axis=0)) + 1
+    holds = np.diff(changes) * TS
+    assert holds.min() >= 1.0 - TS / 2 and holds.max() <= 10.0 + TS / 2
+
+
+def test_split_range_drives_one_valve_at_a_time_and_shuts_the_other():
+    currents = _levels()
+    # The design knows no starting current: the idle valve is shut (0 A), below any.
+    assert not np.any((currents[0] > 0.0) & (currents[1] > 0.0))
+    neither = np.mean((currents[0] == 0.0) & (currents[1] == 0.0))
+    assert 0.25 < neither < 0.42  # a third of the holds drive neither
+    # The driven valve's levels are uniform over its whole range, onset region included.
+    for row, top in zip(currents, TOPS, strict=True):
+        driven = row[row > 0.0]
+        assert np.mean(driven < top / 2) == pytest.approx(0.5, abs=0.08)
+    independent = _levels("independent")
+    assert np.mean((independent[0] > 0.06) & (independent[1] > 0.06)) > 0.3
+
+
+@pytest.mark.parametrize("arrangement", ["split_range", "independent"])
+def test_each_block_of_eight_levels_visits_every_eighth_of_the_range(arrangement):
+    currents = _levels(arrangement)
+    for row, top in zip(currents, TOPS, strict=True):
+        starts = np.flatnonzero(np.diff(np.r_[-1.0, row]) != 0.0)
+        driven = row[starts][row[starts] > 0.0]
+        eighths = np.floor(driven / top * 8).astype(int)
+        blocks = eighths[: eighths.size // 8 * 8].reshape(-1, 8)
+        assert blocks.shape[0] >= 10
+        for block in blocks:
+            np.testing.assert_array_equal(np.sort(block), np.arange(8))
+
+
+def test_holds_are_drawn_as_the_multilevel_design_draws_them():
+    # One generator: the holds first (excitation.random_holds), then the levels.
+    # Independent levels are continuous, so every hold ends in a change of both currents.
+    holds = random_holds(np.random.default_rng(7), 20000, (1.0, 10.0), TS)
+    currents = _levels("independent", seed=7)
+    changes = np.flatnonzero(np.any(np.diff(currents, axis=1) != 0, axis=0)) + 1
+    np.testing.assert_array_equal(np.diff(np.r_[0, changes]), holds[: changes.size])
+
+
+def test_the_same_seed_gives_the_same_levels_and_another_seed_others():
+    np.testing.assert_array_equal(_levels(seed=3), _levels(seed=3))
+    assert not np.array_equal(_levels(seed=3), _levels(seed=4))
+
+
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        ({"arrangement": "both"}, "arrangement = 'both'"),
+        ({"samples": 1}, "samples = 1"),
+        ({"hold_range_s": (2.0, 1.0)}, "hold_s must satisfy"),
+        ({"top_currents_a": (0.19, -0.1)}, "top_currents_a"),
+    ],
+)
+def test_bad_arguments_are_one_line_naming_the_argument(arguments, message):
+    fields = {
+        "samples": 100,
+        "sample_period_s": TS,
+        "top_currents_a": TOPS,
+        "hold_range_s": (1.0, 10.0),
+        "seed": 0,
+        **arguments,
+    }
+    with pytest.raises(ValueError, match=message):
+        random_level_currents(**fields)
+
+
+INTERVALS = ((0.055, 0.075), (0.030, 0.110))
+
+
+def _targeted(seed=0, samples=8000, hold_s=6.0):
+    return targeted_level_currents(samples, TS, TOPS, INTERVALS, hold_s, seed)
+
+
+def _holds(currents, valve):
+    """(first sample, level) of each run of ``valve``'s current held above 0 (its last sample)."""
+    row = currents[valve]
+    driven = np.flatnonzero(row > 0.0)
+    firsts = driven[np.diff(np.r_[-2, driven]) > 1]
+    lasts = driven[np.diff(np.r_[driven, row.size + 2]) > 1]
+    return firsts, row[lasts]
+
+
+def test_targeted_levels_take_turns_inside_each_interval_approached_from_both_sides():
+    currents = _targeted()
+    assert not np.any((currents[0] > 0.0) & (currents[1] > 0.0))
+    for valve, ((low, high), top) in enumerate(zip(INTERVALS, TOPS, strict=True)):
+        firsts, levels = _holds(currents, valve)
+        assert np.all((levels >= low) & (levels <= high))
+        # Each hold is 60 samples, its first the top current (from above) or the level (below).
+        np.testing.assert_array_equal(np.diff(firsts), 120)
+        from_above = currents[valve, firsts] == top
+        np.testing.assert_array_equal(from_above | (currents[valve, firsts] == levels), True)
+        assert np.all(from_above[1:] != from_above[:-1])
+        # Shut before each hold, so a hold without the pulse is approached from below.
+        assert np.all(currents[valve, firsts[firsts > 0] - 1] == 0.0)
+        eighths = np.floor((levels - low) / (high - low) * 8).astype(int)
+        for block in eighths[: eighths.size // 8 * 8].reshape(-1, 8):
+            np.testing.assert_array_equal(np.sort(block), np.arange(8))
+
+
+def test_a_coverage_share_puts_every_other_hold_over_the_rest_of_the_curve():
+    currents = targeted_level_currents(8000, TS, TOPS, INTERVALS, 6.0, 0, coverage_share=0.5)
+    for valve, ((low, high), top) in enumerate(zip(INTERVALS, TOPS, strict=True)):
+        firsts, levels = _holds(currents, valve)
+        inside, above = levels[0::2], levels[1::2]
+        assert np.all((inside >= low) & (inside <= high))
+        assert np.all((above >= high) & (above <= top))
+        assert np.mean(above > (high + top) / 2) == pytest.approx(0.5, abs=0.1)
+        from_above = currents[valve, firsts] == top
+        for kind in (from_above[0::2], from_above[1::2]):
+            assert np.all(kind[1:] != kind[:-1])
+
+
+def test_targeted_levels_are_seeded():
+    np.testing.assert_array_equal(_targeted(seed=3), _targeted(seed=3))
+    assert not np.array_equal(_targeted(seed=3), _targeted(seed=4))
+
+
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        ({"samples": 1}, "samples = 1"),
+        ({"start_intervals_a": ((0.07, 0.06), (0.0, 0.1))}, "start_intervals_a"),
+        ({"start_intervals_a": ((0.0, 0.2), (0.0, 0.1))}, "start_intervals_a"),
+        ({"top_currents_a": (0.19, 0.0)}, "top_currents_a"),
+        ({"hold_s": 0.0}, "hold_s must satisfy"),
+        ({"coverage_share": 1.5}, "coverage_share = 1.5"),
+    ],
+)
+def test_bad_targeted_arguments_name_the_argument(arguments, message):
+    fields = {
+        "samples": 100,
+        "sample_period_s": TS,
+        "top_currents_a": TOPS,
+        "start_intervals_a": INTERVALS,
+        "hold_s": 2.0,
+        "seed": 0,
+        **arguments,
+    }
+    with pytest.raises(ValueError, match=message):
+        targeted_level_currents(**fields)

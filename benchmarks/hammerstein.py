@@ -46,7 +46,7 @@ from maskless.diagrams.valve_level_experiment import (
     run_sequential_experiment,
     run_two_valve_experiment,
 )
-from maskless.systems.control.valve_level_design import random_level_currents
+from maskless.systems.control.valve_level_design import TOP_CURRENT_A, random_level_currents
 from maskless.systems.plant.pneumatic_physics import LIFT
 from maskless.systems.plant.pneumatic_plant import equilibrium_state
 from maskless.systems.units import a_to_ma, ma_to_a
@@ -280,7 +280,7 @@ def main() -> None:
     parser.add_argument("--order", type=int, default=2)
     parser.add_argument("--delay", type=int, default=1)
     parser.add_argument("--segments", type=int, default=6)
-    parser.add_argument("--top-ma", type=float, default=190.0)
+    parser.add_argument("--top-ma", type=float, default=a_to_ma(TOP_CURRENT_A))
     parser.add_argument("--hold-s", type=float, nargs=2, default=(5.0, 60.0))
     parser.add_argument("--arrangement", default="split_range")
     parser.add_argument(

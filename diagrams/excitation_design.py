@@ -28,6 +28,7 @@ from maskless.systems.control.excitation import (
     validated_band,
 )
 from maskless.systems.control.valve_allocation import current_split_allocation
+from maskless.systems.control.valve_level_design import TOP_CURRENT_A, random_level_currents
 from maskless.systems.control.valve_pair_excitation import (
     VALVE_DRIVES,
     outlet_seed,
@@ -38,7 +39,9 @@ from maskless.systems.limits import DURATION_S, SAMPLE_PERIOD_S
 from maskless.systems.plant.pneumatic_physics import ValveParameters
 from maskless.systems.units import a_to_ma
 
-SIGNALS = ("uniform", "prbs", "multisine", "multilevel")
+SIGNALS = ("uniform", "prbs", "multisine", "multilevel", "valve-levels")
+# The signals whose levels are held for --hold's random times.
+HELD_LEVEL_SIGNALS = ("multilevel", "valve-levels")
 
 # The half-width of an excitation whose request gives none (multilevel aside): `maskless excite`'s
 # long-standing 50 mA.
@@ -51,7 +54,10 @@ class ExcitationRequest(LabelledRequest):
 
     Attributes:
         signal: "uniform" (the paper's, Eq. 22-23), "prbs", "multisine" (Schroeder phases) or
-            "multilevel" (random levels held for random times, to see the valves' static curve).
+            "multilevel" (random levels held for random times, to see the valves' static curve),
+            or "valve-levels" (both valves, continuous stratified levels from shut to
+            ``valve_level_design.TOP_CURRENT_A``, the design benchmarks/hammerstein.py measures
+            the Hammerstein fit on; split-range: one valve at a time).
         amplitude_a: half-width of the current excursion (A); None for 50 mA, or for a
             multilevel signal half the valve's whole range [0, saturation], so that its levels
             span it.
@@ -68,7 +74,7 @@ class ExcitationRequest(LabelledRequest):
             command: its range runs from one inlet span below the inlet's starting current, the
             outlet fully open, to the inlet's saturation, and its centre is the split point).
         levels: multilevel only: the number of levels.
-        hold_s: multilevel only: (shortest, longest) time a level is held (s).
+        hold_s: multilevel and valve-levels: (shortest, longest) time a level is held (s).
         labels: see ``LabelledRequest``.
     """
 
@@ -137,6 +143,19 @@ class ExcitationRequest(LabelledRequest):
             "levels",
             "2 or more levels",
         )
+        if self.signal == "valve-levels":
+            require(
+                self.valve_drive in ("split-range", "independent"),
+                "valve_drive",
+                "split-range or independent with valve-levels (it drives both valves)",
+            )
+            for field_name in ("amplitude_a", "offset_a"):
+                require(
+                    getattr(self, field_name) is None,
+                    field_name,
+                    "none with valve-levels (its levels span each valve from shut to "
+                    f"{a_to_ma(TOP_CURRENT_A):g} mA)",
+                )
         hold_pair = isinstance(self.hold_s, tuple | list) and len(self.hold_s) == 2
         require(
             hold_pair
@@ -219,6 +238,8 @@ def plan_excitation(scenario: Scenario, request: ExcitationRequest) -> Excitatio
             f"{request.label('clock_periods')} {request.clock_periods}: expected 1 to "
             f"{samples // 2} (half the {samples} samples), so the PRBS has at least two bits"
         )
+    if request.signal == "valve-levels":
+        return _plan_valve_levels(scenario, request, period_s, samples)
     ranges_a = valve_current_ranges_a(scenario)
     seed = scenario.random_seed
     if request.valve_drive == "split-range":
@@ -290,6 +311,52 @@ def plan_excitation(scenario: Scenario, request: ExcitationRequest) -> Excitatio
     )
 
 
+def _plan_valve_levels(
+    scenario: Scenario, request: ExcitationRequest, period_s: float, samples: int
+) -> ExcitationPlan:
+    """Both valves' levels (``valve_level_design.random_level_currents``), applied as designed.
+
+    The levels run from shut to ``TOP_CURRENT_A``, past saturation, where each valve is fully open
+    whatever its current: nothing is clipped.
+    """
+    _check_holds(request, period_s)
+    arrangement = "split_range" if request.valve_drive == "split-range" else "independent"
+    currents = random_level_currents(
+        samples,
+        period_s,
+        (TOP_CURRENT_A, TOP_CURRENT_A),
+        request.hold_s,
+        scenario.random_seed,
+        arrangement,
+    )
+    times = np.arange(samples) * period_s
+    inlet, outlet = (ExcitationSignal(times, row, period_s, request.signal) for row in currents)
+    return ExcitationPlan(
+        dataclasses.replace(scenario, duration_s=request.duration_s),
+        request,
+        inlet,
+        inlet,
+        outlet,
+        outlet,
+        0.5 * TOP_CURRENT_A,
+        0.5 * TOP_CURRENT_A,
+        (0.0, TOP_CURRENT_A),
+        {"inlet": 0.0, "outlet": 0.0},
+    )
+
+
+def _check_holds(request: ExcitationRequest, sample_period_s: float) -> None:
+    """Raises ConfigError, naming ``hold_s`` as the user did, for holds no sample can make."""
+    try:
+        hold_samples(request.hold_s, sample_period_s)
+    except ValueError:  # said again in the request's terms
+        raise ConfigError(
+            f"{request.label('hold_s')} {request.hold_s[0]:g}:{request.hold_s[1]:g}: "
+            f"expected holds of at least one sample, {sample_period_s:.6g} s, with a whole "
+            "sample from SHORTEST to LONGEST"
+        ) from None
+
+
 def _require_some_left(
     moving: bool,
     whose: str,
@@ -329,14 +396,7 @@ def design_excitation(
         options["clock_periods"] = request.clock_periods
         options["half_period_shift"] = half_period_shift
     if request.signal == "multilevel":
-        try:
-            hold_samples(request.hold_s, sample_period_s)
-        except ValueError:  # said again in the request's terms
-            raise ConfigError(
-                f"{request.label('hold_s')} {request.hold_s[0]:g}:{request.hold_s[1]:g}: "
-                f"expected holds of at least one sample, {sample_period_s:.6g} s, with a whole "
-                "sample from SHORTEST to LONGEST"
-            ) from None
+        _check_holds(request, sample_period_s)
         options["num_levels"] = request.levels
         options["hold_s"] = request.hold_s
     if request.signal == "multisine" and request.band_hz is not None:

@@ -23,6 +23,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from maskless.analysis.identification.report import EXPLAINS_VERDICT
+from maskless.diagrams.excitation_design import HELD_LEVEL_SIGNALS
 from maskless.diagrams.excitation_run import ExcitationRequest, excite_to_files
 from maskless.diagrams.identification_run import IdentificationRequest, identify_to_files
 from maskless.diagrams.output_folder import RunFolder
@@ -58,6 +59,7 @@ def excite_command(request: ExcitationRequest, seed: int, config: Path | None, o
         argv += ["--band", f"{request.band_hz[0]!r}:{request.band_hz[1]!r}"]
     if request.signal == "multilevel":
         argv += ["--levels", str(request.levels)]
+    if request.signal in HELD_LEVEL_SIGNALS:
         argv += ["--hold", f"{request.hold_s[0]!r}:{request.hold_s[1]!r}"]
     return "maskless excite " + shlex.join([*argv, *_common(seed, config, out)])
 

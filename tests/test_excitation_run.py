@@ -27,6 +27,7 @@ from maskless.systems.control.excitation import (
     prbs,
     uniform_white_noise,
 )
+from maskless.systems.control.valve_level_design import TOP_CURRENT_A, random_level_currents
 from maskless.systems.control.valve_pair_excitation import outlet_seed
 from maskless.systems.plant.pneumatic_design import linearize_pneumatic_plant
 from maskless.systems.plant.pneumatic_physics import LIFT
@@ -292,3 +293,36 @@ def test_a_split_range_command_clipping_leaves_nothing_of_is_refused():
     # The same +- 50 mA about 190 mA reaches back into the range: the inlet moves, the outlet not.
     plan = plan_excitation(config, dataclasses.replace(request, offset_a=0.190))
     assert np.ptp(plan.inlet.values) > 0.0 and np.ptp(plan.outlet.values) == 0.0
+
+
+@pytest.mark.parametrize("drive", ["split-range", "independent"])
+def test_valve_levels_records_the_benchmarks_level_design(drive, tmp_path, capsys):
+    out = tmp_path / "ex"
+    args = ["excite", "--valve-drive", drive, "--signal", "valve-levels", "--seed", "3"]
+    args += ["--hold", "0.5:3", "--duration", "20", "--out", str(out), "--json"]
+    assert main(args) == 0
+    summary = json.loads(capsys.readouterr().out)
+    currents = _recorded_currents(out, summary["samples"])
+    # The levels of benchmarks/hammerstein.py's design, from the run's seed, applied unclipped
+    # (past saturation each valve is fully open whatever the current).
+    arrangement = drive.replace("-", "_")
+    expected = random_level_currents(
+        summary["samples"], PERIOD_S, (TOP_CURRENT_A,) * 2, (0.5, 3.0), 3, arrangement
+    )
+    np.testing.assert_array_equal(currents, expected.T)
+    if drive == "split-range":
+        assert not np.any((currents[:, 0] > 0) & (currents[:, 1] > 0))
+    assert summary["signal"] == "valve-levels"
+
+
+@pytest.mark.parametrize(
+    "fields, message",
+    [
+        ({}, "valve_drive 'inlet': expected split-range or independent with valve-levels"),
+        ({"valve_drive": "independent", "amplitude_a": 0.05}, "amplitude_a 0.05: expected none"),
+        ({"valve_drive": "split-range", "offset_a": 0.1}, "offset_a 0.1: expected none"),
+    ],
+)
+def test_valve_levels_refuses_what_its_design_does_not_take(fields, message):
+    with pytest.raises(ConfigError, match=message):
+        ExcitationRequest(signal="valve-levels", **fields)

@@ -6,7 +6,10 @@ random times, for a Hammerstein fit) about an offset current, clipped to the val
 [0, saturation] range as the authors clipped theirs, while the cameras, their local Kalman filters
 and the fusion watch the head. --valve-drive independent gives each valve its own signal, clipped
 to its own range; --valve-drive split-range splits one command between them, the inlet above the
-inlet's starting current and the outlet below it, as the controller does. Writes DIR/run.mcap
+inlet's starting current and the outlet below it, as the controller does. --signal valve-levels
+drives both valves through continuous stratified levels from shut to 190 mA (one valve at a time
+with split-range), the design benchmarks/hammerstein.py measures the Hammerstein fit on. Writes
+DIR/run.mcap
 with the topics `maskless simulate` writes (the command topic carries both valve currents; the
 reference topic holds the resting height, as nothing is commanded), DIR/run.png, and prints the
 signal's standard deviation (against A/sqrt(3) for uniform noise), its crest factor and how much
@@ -132,7 +135,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=_hold,
         default=MULTILEVEL_HOLD_S,
         metavar="SHORTEST:LONGEST",
-        help="multilevel: range of the random hold times, s (default "
+        help="multilevel and valve-levels: range of the random hold times, s (default "
         f"{MULTILEVEL_HOLD_S[0]:g}:{MULTILEVEL_HOLD_S[1]:g}, chosen for the pneumatic plant's "
         "time constants)",
     )

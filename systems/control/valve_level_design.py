@@ -41,6 +41,9 @@ import numpy as np
 from maskless.systems.control.excitation import hold_samples, random_holds
 
 ARRANGEMENTS = ("split_range", "independent")
+# The highest level of either valve (A): past the proportional valves' rated 165 mA, so the levels
+# show the curve's flat top (the datasheet range the design knows; assets/pneumatic.yaml).
+TOP_CURRENT_A = 0.190
 # Equal parts of a valve's range that each block of its levels visits once (``_stratified``).
 _STRATA = 8
 

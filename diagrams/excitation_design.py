@@ -332,16 +332,16 @@ def _plan_valve_levels(
     times = np.arange(samples) * period_s
     inlet, outlet = (ExcitationSignal(times, row, period_s, request.signal) for row in currents)
     return ExcitationPlan(
-        dataclasses.replace(scenario, duration_s=request.duration_s),
-        request,
-        inlet,
-        inlet,
-        outlet,
-        outlet,
-        0.5 * TOP_CURRENT_A,
-        0.5 * TOP_CURRENT_A,
-        (0.0, TOP_CURRENT_A),
-        {"inlet": 0.0, "outlet": 0.0},
+        scenario=dataclasses.replace(scenario, duration_s=request.duration_s),
+        request=request,
+        designed=inlet,
+        inlet=inlet,
+        outlet=outlet,
+        designed_outlet=outlet,
+        amplitude_a=0.5 * TOP_CURRENT_A,
+        offset_a=0.5 * TOP_CURRENT_A,
+        designed_range_a=(0.0, TOP_CURRENT_A),
+        clipped={"inlet": 0.0, "outlet": 0.0},
     )
 
 

@@ -112,7 +112,7 @@ def pneumatic_record(config, args, seed):
             tops,
             (first, split),
             start_intervals_a,
-            args.targeted_hold_s or args.hold_s[1],
+            args.targeted_hold_s,
             seed,
             args.rounds,
             args.coverage_share,
@@ -232,7 +232,7 @@ def measure(args) -> dict:
             "targeted_share": args.targeted_share,
             "rounds": args.rounds,
             "coverage_share": args.coverage_share,
-            "targeted_hold_s": args.targeted_hold_s or args.hold_s[1],
+            "targeted_hold_s": args.targeted_hold_s,
         }
     runs = []
     for seed in args.seeds:
@@ -315,6 +315,8 @@ def main() -> None:
     args = parser.parse_args()
     if not 0.0 <= args.targeted_share < 1.0:
         raise ValueError(f"--targeted-share = {args.targeted_share}: expected 0 <= share < 1")
+    if args.targeted_hold_s is None:
+        args.targeted_hold_s = args.hold_s[1]
     print(json.dumps(measure(args)))
 
 

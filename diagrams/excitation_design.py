@@ -25,6 +25,7 @@ from maskless.systems.control.excitation import (
     excitation_signal,
     hold_samples,
     sample_count,
+    sampled_signal,
     validated_band,
 )
 from maskless.systems.control.valve_allocation import current_split_allocation
@@ -329,8 +330,7 @@ def _plan_valve_levels(
         scenario.random_seed,
         arrangement,
     )
-    times = np.arange(samples) * period_s
-    inlet, outlet = (ExcitationSignal(times, row, period_s, request.signal) for row in currents)
+    inlet, outlet = (sampled_signal(row, period_s, request.signal) for row in currents)
     return ExcitationPlan(
         scenario=dataclasses.replace(scenario, duration_s=request.duration_s),
         request=request,

@@ -24,7 +24,7 @@ import numpy as np
 from maskless.diagrams.excitation_run import build_excitation_loop
 from maskless.diagrams.scenario import Scenario
 from maskless.diagrams.simulation import SimulationRun, simulate_loop
-from maskless.systems.control.excitation import ExcitationSignal
+from maskless.systems.control.excitation import sampled_signal
 from maskless.systems.control.valve_level_design import targeted_level_currents
 
 
@@ -113,10 +113,7 @@ def run_two_valve_experiment(
     """
     duration_s = currents_a.shape[1] * sample_period_s
     experiment = dataclasses.replace(config, duration_s=duration_s)
-    inlet, outlet = (
-        ExcitationSignal(np.arange(row.size) * sample_period_s, row, sample_period_s, "levels")
-        for row in currents_a
-    )
+    inlet, outlet = (sampled_signal(row, sample_period_s, "levels") for row in currents_a)
     run = simulate_loop(build_excitation_loop(experiment, inlet, outlet=outlet), experiment)
     applied = np.vstack(
         [run.signals[f"{valve}_valve_current_a"].values[0] for valve in ("inlet", "outlet")]

@@ -160,11 +160,10 @@ def fit_static_curves(levels: SettledLevels, max_start: float, max_saturation: f
 
 def _start_interval(x, y, held, max_start, max_saturation):
     """(starts on the coarse grid, the lowest sum of squares of each), the others' curves held."""
-    starts = np.arange(0.0, max_start + 1e-12, _GRID_STEP)
+    starts = _grid_starts(max_start)
     lowest = []
     for start in starts:
-        saturations = np.arange(start + _GRID_STEP, max_saturation + 1e-12, _GRID_STEP)
-        best = _best_of(x, y, held, [(start, c) for c in saturations])
+        best = _best_of(x, y, held, [(start, c) for c in _grid_saturations(start, max_saturation)])
         lowest.append(_nonnegative_fit([*held, _signed(x, *best)], y)[0])
     return starts, np.array(lowest)
 
@@ -184,8 +183,8 @@ def _profile(x, y, held, max_start, max_saturation):
     """((start, saturation), sign) of one input's curve, by the grid and its refinement."""
     coarse = [
         (start, saturation)
-        for start in np.arange(0.0, max_start + 1e-12, _GRID_STEP)
-        for saturation in np.arange(start + _GRID_STEP, max_saturation + 1e-12, _GRID_STEP)
+        for start in _grid_starts(max_start)
+        for saturation in _grid_saturations(start, max_saturation)
     ]
     best = _best_of(x, y, held, coarse)
     offsets = np.arange(-_GRID_STEP, _GRID_STEP + 1e-12, _REFINED_STEP)
@@ -197,6 +196,16 @@ def _profile(x, y, held, max_start, max_saturation):
         if c >= s + _GRID_STEP
     ]
     return _best_of(x, y, held, fine, best)
+
+
+def _grid_starts(max_start):
+    """The coarse grid's starting currents, 0 to ``max_start`` (fractions of the range)."""
+    return np.arange(0.0, max_start + 1e-12, _GRID_STEP)
+
+
+def _grid_saturations(start, max_saturation):
+    """The coarse grid's saturation currents past ``start``, up to ``max_saturation``."""
+    return np.arange(start + _GRID_STEP, max_saturation + 1e-12, _GRID_STEP)
 
 
 def _best_of(x, y, held, ends, best=None):

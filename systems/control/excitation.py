@@ -178,7 +178,7 @@ def uniform_white_noise(
     values = rng.uniform(offset - amplitude, offset + amplitude, size=num_samples)
     # uniform() draws from [low, high); a clip guards the closed support against rounding.
     values = np.clip(values, offset - amplitude, offset + amplitude)
-    return _signal(values, sample_period_s, "uniform")
+    return sampled_signal(values, sample_period_s, "uniform")
 
 
 def prbs(
@@ -231,7 +231,7 @@ def prbs(
         bits, _ = max_len_seq(register_bits, state=state, length=min(num_bits, period_bits))
     bits = np.resize(bits, num_bits)  # repeats the period in the (impractical) > 32-bit case
     levels = np.repeat(2.0 * bits.astype(float) - 1.0, clock_periods)[:num_samples]
-    return _signal(offset + amplitude * levels, sample_period_s, "prbs")
+    return sampled_signal(offset + amplitude * levels, sample_period_s, "prbs")
 
 
 def multisine(
@@ -298,7 +298,7 @@ def multisine(
     cycles = np.outer(sample_index, selected) % num_samples / num_samples
     waveform = np.cos(2.0 * np.pi * cycles + phase).sum(axis=1)
     waveform *= amplitude / np.max(np.abs(waveform))
-    return _signal(offset + waveform, sample_period_s, "multisine")
+    return sampled_signal(offset + waveform, sample_period_s, "multisine")
 
 
 def multilevel_prbs(
@@ -356,7 +356,7 @@ def multilevel_prbs(
     level_index = (first + np.concatenate([[0], np.cumsum(steps)])) % num_levels
     levels = np.linspace(offset - amplitude, offset + amplitude, num_levels)
     values = np.repeat(levels[level_index], holds)[:num_samples]
-    return _signal(values, sample_period_s, "multilevel")
+    return sampled_signal(values, sample_period_s, "multilevel")
 
 
 def random_holds(rng, num_samples, hold_s, sample_period_s) -> np.ndarray:
@@ -475,7 +475,8 @@ def add_excitation_source(
     return source.get_output_port()
 
 
-def _signal(values, sample_period_s, kind):
+def sampled_signal(values, sample_period_s, kind) -> ExcitationSignal:
+    """``values`` as a signal sampled every ``sample_period_s`` from 0, named ``kind``."""
     times_s = np.arange(values.size) * sample_period_s
     return ExcitationSignal(times_s, values, sample_period_s, kind)
 

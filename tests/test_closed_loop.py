@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 from pydrake.systems.analysis import Simulator
+from pydrake.systems.primitives import Demultiplexer
 
 from maskless.diagrams.closed_loop import (
     build_closed_loop,
@@ -15,7 +16,11 @@ from maskless.diagrams.closed_loop import (
 )
 from maskless.diagrams.controller_design import NominalPneumatic
 from maskless.diagrams.run_recording import signal_channels
-from maskless.diagrams.scenario import controller_from_shorthand, plant_from_shorthand
+from maskless.diagrams.scenario import (
+    controller_from_shorthand,
+    load_scenario,
+    plant_from_shorthand,
+)
 from maskless.diagrams.simulation import simulate, simulate_loop
 from maskless.errors import ConfigError
 from maskless.recording import read_recording, write_recording
@@ -93,8 +98,28 @@ def test_diagram_names_its_subsystems_and_exports_named_outputs(
     }
     assert sizes["head_height_m"] == 1 and sizes["inlet_valve_current_a"] == 1
     assert sizes["outlet_valve_current_a"] == 1
-    assert sizes["fusion.estimated_state"] == 2 and sizes["kinect_v2_filter.covariance"] == 4
+    assert sizes["fusion.estimated_state"] == 2
+    # A camera's measurement and a filter's track are exported only when logged.
+    assert not any(name.startswith("kinect_") for name in sizes)
+    logged = ("kinect_v1.distance_m", "kinect_v1.valid", "kinect_v2_filter.covariance")
+    diagram = build_closed_loop(config, record=logged).diagram
+    sizes = {
+        diagram.get_output_port(i).get_name(): diagram.get_output_port(i).size()
+        for i in range(diagram.num_output_ports())
+    }
+    assert sizes["kinect_v2_filter.covariance"] == 4
     assert sizes["kinect_v1.distance_m"] == 1 and sizes["kinect_v1.valid"] == 1
+    assert "kinect_v2.distance_m" not in sizes
+
+
+def test_a_loop_that_logs_no_camera_has_no_system_only_to_name_their_outputs():
+    # Measured: each Demultiplexer costs a step its cache work whether it is read or not.
+    diagram = build_closed_loop(load_scenario(), record=("head_height_m",)).diagram
+    demultiplexers = {
+        system.get_name() for system in diagram.GetSystems() if isinstance(system, Demultiplexer)
+    }
+    assert not {name for name in demultiplexers if name.startswith("kinect_")}
+    assert "bladder_gauge_pressure" not in {system.get_name() for system in diagram.GetSystems()}
 
 
 def test_recording_read_back_with_the_mcap_reader(short_run, tmp_path):

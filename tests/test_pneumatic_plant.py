@@ -56,10 +56,20 @@ def test_ports(p):
     plant = PneumaticPlant(p)
     assert port_layout(plant) == (
         {"inlet_valve_current_a": 1, "outlet_valve_current_a": 1},
-        {"head_height_m": 1, "state": 5},
+        {"head_height_m": 1, "state": 5, "bladder_gauge_pressure_pa": 1},
     )
     discrete = make_pneumatic_plant(p, equilibrium_state(p, 0.0, 0.0), p.simulation_step_s)
     assert port_layout(discrete) == port_layout(plant)
+
+
+def test_the_gauge_pressure_port_reads_the_state(p):
+    state = np.array([1500.0, 0.004, 0.01, 0.1, 0.07])
+    plant = PneumaticPlant(p, state)
+    context = plant.CreateDefaultContext()
+    assert plant.GetOutputPort("bladder_gauge_pressure_pa").Eval(context)[0] == 1500.0
+    discrete = make_pneumatic_plant(p, state, p.simulation_step_s)
+    context = discrete.CreateDefaultContext()
+    assert discrete.GetOutputPort("bladder_gauge_pressure_pa").Eval(context)[0] == 1500.0
 
 
 def test_scalar_conversion_agrees_with_float(p):

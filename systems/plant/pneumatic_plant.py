@@ -275,6 +275,7 @@ def PneumaticPlant_(T):  # noqa: N802 (Drake template naming)
             output_ports:
             - head_height_m
             - state
+            - bladder_gauge_pressure_pa
 
         Args:
             parameters: the plant's constants (SI); they become the numeric parameter, so a
@@ -310,6 +311,13 @@ def PneumaticPlant_(T):  # noqa: N802 (Drake template naming)
             self._inputs = [self.DeclareVectorInputPort(name, 1) for name in INPUT_NAMES]
             self.DeclareVectorOutputPort("head_height_m", 1, self._calc_head_height)
             self.DeclareStateOutputPort("state", state_index)
+            self.DeclareVectorOutputPort(
+                "bladder_gauge_pressure_pa",
+                1,
+                lambda context, output: output.SetAtIndex(
+                    0, context.get_continuous_state_vector()[GAUGE_PRESSURE]
+                ),
+            )
 
         def _construct_copy(self, other, converter=None):
             Impl._construct(self, other._parameters, other._initial_state, converter)
@@ -441,6 +449,7 @@ def add_pneumatic_plant(
         output_ports:
         - head_height_m
         - state
+        - bladder_gauge_pressure_pa
 
     Args:
         builder: where the plant goes.
@@ -507,7 +516,13 @@ def add_pneumatic_plant(
         builder,
         name,
         inputs=[(INPUT_NAMES[0], [inlet]), (INPUT_NAMES[1], [outlet])],
-        outputs=[("head_height_m", [head_height_m(state, p)]), ("state", state)],
+        # The gauge pressure as a port of its own: the supervisor's pressure sensor reads it, and
+        # a system that only picked it out of the state would cost every step its cache work.
+        outputs=[
+            ("head_height_m", [head_height_m(state, p)]),
+            ("state", state),
+            ("bladder_gauge_pressure_pa", [state[GAUGE_PRESSURE]]),
+        ],
         state=list(offset),
         dynamics=[
             next_value - start

@@ -411,11 +411,11 @@ def build_closed_loop(
     ``outlet_valve_current_a``, ``fusion.estimated_state``, ``fusion.covariance``,
     ``fusion.health``, and, when logged (``export_and_log``), for each camera
     ``{name}.distance_m``, ``{name}.valid``, ``{name}_filter.estimated_state``,
-    ``{name}_filter.covariance`` and ``{name}_filter.health``; with the safety supervisor (``safety.enabled`` and a controller), ``safety.reasons``,
-    ``safety.mode``, ``safety.beam_hold``, ``safety.inlet_valve_current_a``,
-    ``safety.outlet_valve_current_a`` (what the valves get) and ``safety.estimated_head_height_m``
-    (the controller's estimate it judges the beam by); with the pneumatic plant,
-    ``plant.bladder_gauge_pressure_pa``.
+    ``{name}_filter.covariance`` and ``{name}_filter.health``; with the safety supervisor
+    (``safety.enabled`` and a controller), ``safety.reasons``, ``safety.mode``,
+    ``safety.beam_hold``, ``safety.inlet_valve_current_a``, ``safety.outlet_valve_current_a``
+    (what the valves get) and ``safety.estimated_head_height_m`` (the controller's estimate it
+    judges the beam by); with the pneumatic plant, ``plant.bladder_gauge_pressure_pa``.
     """
     paper = config.paper
     builder = DiagramBuilder()

@@ -48,7 +48,7 @@ from maskless.systems.fault_injection import (
 from maskless.systems.hammerstein_model import HammersteinModel
 from maskless.systems.late_random_sources import LateRandomSources
 from maskless.systems.linear_model import LinearModel
-from maskless.systems.named_symbolic_system import PortMap
+from maskless.systems.named_symbolic_system import PortMap, add_symbolic_bank
 from maskless.systems.paper_parameters import paper_filter_variances_si
 from maskless.systems.plant.hammerstein_plant import add_hammerstein_plant
 from maskless.systems.plant.linear_model_plant import (
@@ -64,8 +64,8 @@ from maskless.systems.plant.pneumatic_plant import (
 )
 from maskless.systems.plumbing import remove_plumbing
 from maskless.systems.sensing.camera_error import add_camera_error
-from maskless.systems.sensing.depth_sensor import add_depth_sensor
-from maskless.systems.sensing.local_kalman_filter import add_local_kalman_filter
+from maskless.systems.sensing.depth_sensor import add_depth_sensor, add_depth_sensors
+from maskless.systems.sensing.local_kalman_filter import local_kalman_filter_system
 from maskless.systems.sensing.pressure_sensor import add_pressure_sensor
 from maskless.systems.sensing.track_fusion import add_track_fusion
 
@@ -240,6 +240,10 @@ def add_cameras(
     """
     sensors = {}
     scene = None
+    # Camera models alone are added as banks (a step costs less); beside a rendered camera, each
+    # is added in its turn, so every camera's RandomSource keeps its place in the seeding order.
+    rendered = any(camera.rendering.enabled for camera in config.cameras.values())
+    models = {} if rendered else add_depth_sensors(builder, config.cameras)
     for name, camera in config.cameras.items():
         if camera.rendering.enabled:
             if scene is None:
@@ -249,7 +253,7 @@ def add_cameras(
                 scene = add_camera_scene(builder, head_height)
             sensor = _add_rendered_camera(builder, config, name, scene, frames)
         else:
-            sensor = add_depth_sensor(builder, name, camera)
+            sensor = models[name] if name in models else add_depth_sensor(builder, name, camera)
             builder.Connect(head_height, sensor.inputs["head_height_m"])
         frame_period_s = 1.0 / camera.frame_rate_hz
         measured = add_camera_error(builder, name, camera.error, sensor, frame_period_s, late)
@@ -304,13 +308,14 @@ def add_sensing_chain(
     """
     variances = paper_filter_variances_si(config.paper)
     sensors = add_cameras(builder, config, head_height, frames, late)
-    filters = {}
+    # The filters of one frame rate are one bank (a step costs less than a system each).
+    by_period = {}
     for name, sensor_config in config.cameras.items():
-        local_filter = add_local_kalman_filter(
-            builder,
+        frame_period_s = 1.0 / sensor_config.frame_rate_hz
+        by_period.setdefault(frame_period_s, {})[f"{name}_filter"] = local_kalman_filter_system(
             f"{name}_filter",
             camera_height_m=sensor_config.mount_height_m,
-            frame_period_s=1.0 / sensor_config.frame_rate_hz,
+            frame_period_s=frame_period_s,
             acceleration_variance_m2_s4=variances["acceleration_variance_m2_s4"],
             measurement_variance_m2=variances[sensor_config.model],
             initial_height_m=start_height_m,
@@ -318,9 +323,14 @@ def add_sensing_chain(
             config=config.local_filter,
             detection=config.fault_detection,
         )
+    added = {}
+    for members in by_period.values():
+        added |= add_symbolic_bank(builder, members)
+    filters = {}
+    for name in config.cameras:
+        filters[name] = added[f"{name}_filter"]
         for port in ("distance_m", "valid"):
-            builder.Connect(sensors[name].outputs[port], local_filter.inputs[port])
-        filters[name] = local_filter
+            builder.Connect(sensors[name].outputs[port], filters[name].inputs[port])
     sensor_names = list(config.cameras)
     fusion = add_track_fusion(builder, sensor_names, config.fault_detection, name="fusion")
     for name, local_filter in filters.items():

@@ -84,10 +84,11 @@ def test_diagram_names_its_subsystems_and_exports_named_outputs(
         own_systems
         | {
             "reference",
-            "kinect_v1",
-            "kinect_v1_filter",
-            "kinect_v2",
-            "kinect_v2_filter",
+            # The cameras and their filters, each kind one bank (add_symbolic_bank).
+            "kinect_v1+kinect_v2",
+            "kinect_v1_filter+kinect_v2_filter",
+            "kinect_v1.noise",
+            "kinect_v2.noise",
             "fusion",
         }
         <= names

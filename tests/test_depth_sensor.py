@@ -7,16 +7,18 @@ import pytest
 from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import TrajectorySource, VectorLogSink
+from pydrake.systems.primitives import ConstantVectorSource, TrajectorySource, VectorLogSink
 from pydrake.trajectories import PiecewisePolynomial
 from system_harness import port_layout, simulate_with_constant_inputs
 
 from maskless.errors import ConfigError
-from maskless.systems.named_symbolic_system import as_diagram
+from maskless.systems.named_symbolic_system import add_symbolic_system, as_diagram
 from maskless.systems.sensing.depth_sensor import (
     KinectV1Config,
     KinectV2Config,
-    _add_frame_dynamics,
+    add_depth_sensor,
+    add_depth_sensors,
+    depth_sensor_system,
     latency_frames,
     make_depth_sensor,
     reported_distance_m,
@@ -161,7 +163,9 @@ def test_noise_free_frames_follow_the_decaying_warmup_drift(name):
     config = CONFIGS[name](**WARMUP)
     period_s = 1 / config.frame_rate_hz
     # The camera's frame dynamics with a zero noise draw: a noise-free camera of this model.
-    camera = as_diagram("camera", lambda b: _add_frame_dynamics(b, "camera", config, period_s))
+    camera = as_diagram(
+        "camera", lambda b: add_symbolic_system(b, "camera", depth_sensor_system(config, period_s))
+    )
     logs = simulate_with_constant_inputs(
         camera,
         {"head_height_m": [config.mount_height_m - 0.8], "standard_normal": [0.0, 0.0]},
@@ -223,3 +227,40 @@ def test_latency_in_whole_frames():
 def test_bad_parameters_are_refused_naming_the_field(name, changes, field_name):
     with pytest.raises(ConfigError, match=rf"{name}\.{field_name} ="):
         make_depth_sensor(name, CONFIGS[name](**changes))
+
+
+def camera_frames(banked: bool, configs: dict, seed: int = 4) -> dict[str, np.ndarray]:
+    """200 frames of each camera watching a fixed head, the cameras banked or one at a time."""
+    builder = DiagramBuilder()
+    head = builder.AddSystem(ConstantVectorSource([1.2]))
+    if banked:
+        ports = add_depth_sensors(builder, configs)
+    else:
+        ports = {name: add_depth_sensor(builder, name, config) for name, config in configs.items()}
+    for name, sensor in ports.items():
+        builder.Connect(head.get_output_port(), sensor.inputs["head_height_m"])
+        builder.ExportOutput(sensor.outputs["distance_m"], name)
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    diagram.SetRandomContext(simulator.get_mutable_context(), RandomGenerator(seed))
+    frames = {name: [] for name in configs}
+    for frame in range(200):
+        simulator.AdvanceTo(frame / RATE_HZ)
+        for name in configs:
+            frames[name].append(diagram.GetOutputPort(name).Eval(simulator.get_context())[0])
+    return {name: np.array(values) for name, values in frames.items()}
+
+
+def test_banked_cameras_draw_and_report_what_cameras_added_alone_do():
+    configs = {"kinect_v1": v1_config(), "kinect_v2": v2_config(dropout_probability=0.1)}
+    alone, banked = camera_frames(False, configs), camera_frames(True, configs)
+    for name in configs:
+        np.testing.assert_array_equal(banked[name], alone[name])
+        assert np.ptp(banked[name]) > 0  # noisy frames, not a constant that would match anyway
+    # Cameras of other frame rates are banks of their own.
+    builder = DiagramBuilder()
+    add_depth_sensors(
+        builder, {"a": v1_config(), "b": v2_config(), "c": v1_config(frame_rate_hz=30)}
+    )
+    names = {system.get_name() for system in builder.GetSystems()}
+    assert {"a+b", "c"} <= names

@@ -1,12 +1,19 @@
-"""Context parameters of a SymbolicVectorSystem: defaults, writes and refusals, checked by hand."""
+"""Context parameters and banks of SymbolicVectorSystems, checked by hand and against each other."""
 
 import numpy as np
 import pytest
 from pydrake.symbolic import Variable
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource
 
-from maskless.systems.named_symbolic_system import add_named_symbolic_system, parameter_source
+from maskless.systems.named_symbolic_system import (
+    SymbolicSystem,
+    add_named_symbolic_system,
+    add_symbolic_bank,
+    add_symbolic_system,
+    parameter_source,
+)
 
 
 def build_recurrence():
@@ -57,3 +64,64 @@ def test_a_fixed_or_missing_parameter_is_refused():
     with pytest.raises(ValueError, match="3 values; expected 4: a, b, c, d"):
         source.set_values(context, [1.0, 1.0, 1.0])
     np.testing.assert_array_equal(source.get_values(context), [0.5, 0.5, 2.0, 7.0])
+
+
+def clock_member(scale: float, period_s: float = 0.5) -> SymbolicSystem:
+    """A member with its own time variable: x[n+1] = x[n] / 3 + scale t u, output x + t."""
+    t, u, x = Variable("t"), Variable("u"), Variable("x")
+    return SymbolicSystem(
+        inputs=[("u", [u])],
+        outputs=[("y", [x + t])],
+        state=[x],
+        dynamics=[x / 3.0 + scale * t * u],
+        time=t,
+        time_period=period_s,
+    )
+
+
+def run_members(bank: bool, steps: int = 7) -> dict[str, np.ndarray]:
+    members = {"first": clock_member(0.1), "second": clock_member(-0.7)}
+    builder = DiagramBuilder()
+    if bank:
+        ports = add_symbolic_bank(builder, members)
+    else:
+        ports = {name: add_symbolic_system(builder, name, m) for name, m in members.items()}
+    for index, name in enumerate(members):
+        source = builder.AddSystem(ConstantVectorSource([1.3 + index]))
+        builder.Connect(source.get_output_port(), ports[name].inputs["u"])
+        builder.ExportOutput(ports[name].outputs["y"], name)
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(0.5 * steps)
+    context = simulator.get_context()
+    return {name: diagram.GetOutputPort(name).Eval(context) for name in members}
+
+
+def test_a_bank_computes_what_its_members_compute_alone_bit_for_bit():
+    alone, banked = run_members(bank=False), run_members(bank=True)
+    assert alone.keys() == banked.keys()
+    for name in alone:
+        np.testing.assert_array_equal(banked[name], alone[name])
+    # Against the closed form: x[n+1] = x[n] / 3 + scale t[n] u from x[0] = 0, t[n] = n / 2.
+    x = 0.0
+    for n in range(7):
+        x = x / 3.0 + 0.1 * (0.5 * n) * 1.3
+    assert banked["first"][0] == pytest.approx(x + 3.5, rel=1e-12)
+
+
+def test_a_bank_is_one_system_named_by_its_members():
+    builder = DiagramBuilder()
+    ports = add_symbolic_bank(builder, {"first": clock_member(0.1), "second": clock_member(2.0)})
+    names = {system.get_name() for system in builder.GetSystems()}
+    assert "first+second" in names and not {"first", "second"} & names
+    assert set(ports) == {"first", "second"} and set(ports["second"].outputs) == {"y"}
+    builder = DiagramBuilder()
+    add_symbolic_bank(builder, {"alone": clock_member(0.1)})
+    assert {system.get_name() for system in builder.GetSystems()} == {"alone"}
+
+
+def test_members_of_different_periods_are_refused_by_name():
+    with pytest.raises(ValueError, match=r"'fast': 0.1 s, 'slow': 0.5 s"):
+        add_symbolic_bank(
+            DiagramBuilder(), {"fast": clock_member(1.0, 0.1), "slow": clock_member(1.0)}
+        )

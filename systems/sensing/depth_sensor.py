@@ -12,6 +12,7 @@ authors' logs) reads 0 with ``valid`` = 0, as a Kinect reports invalid pixels.
 """
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from statistics import NormalDist
 from typing import ClassVar
@@ -35,7 +36,8 @@ from maskless.systems.config_loading import UNSET, refuse_out_of_range
 from maskless.systems.limits import FRAME_RATE_HZ, LATENCY_S, at_least_half_a_frame
 from maskless.systems.named_symbolic_system import (
     PortMap,
-    add_named_symbolic_system,
+    SymbolicSystem,
+    add_symbolic_bank,
     building_expressions,
     diagram_form,
 )
@@ -305,20 +307,42 @@ def add_depth_sensor(builder: DiagramBuilder, name: str, config: DepthSensorConf
     seeded with ``diagram.SetRandomContext`` is reproducible bit for bit. Until the delay line
     has filled (and before the first frame), frames are invalid.
     """
-    validate_sensor_config(name, config)
-    period_s = 1.0 / config.frame_rate_hz
-    noise = builder.AddNamedSystem(
-        f"{name}.noise", RandomSource(RandomDistribution.kGaussian, 2, period_s)
-    )
-    ports = _add_frame_dynamics(builder, name, config, period_s)
-    builder.Connect(noise.get_output_port(), ports.inputs.pop("standard_normal"))
-    return ports
+    return add_depth_sensors(builder, {name: config})[name]
+
+
+def add_depth_sensors(
+    builder: DiagramBuilder, configs: Mapping[str, DepthSensorConfig]
+) -> dict[str, PortMap]:
+    """Adds a camera model per entry of ``configs`` (name -> parameters); returns their ports.
+
+    Each camera is what ``add_depth_sensor`` adds, with its own noise source; cameras of one
+    frame rate are one bank (``named_symbolic_system.add_symbolic_bank``), which a step costs
+    less than a system each. The noise sources are added in the order of ``configs``, so a seed
+    draws the same noise either way.
+    """
+    noises, by_period = {}, {}
+    for name, config in configs.items():
+        validate_sensor_config(name, config)
+        period_s = 1.0 / config.frame_rate_hz
+        noises[name] = builder.AddNamedSystem(
+            f"{name}.noise", RandomSource(RandomDistribution.kGaussian, 2, period_s)
+        )
+        by_period.setdefault(period_s, {})[name] = depth_sensor_system(config, period_s)
+    ports = {}
+    for members in by_period.values():
+        ports |= add_symbolic_bank(builder, members)
+    for name, noise in noises.items():
+        builder.Connect(noise.get_output_port(), ports[name].inputs.pop("standard_normal"))
+    return {name: ports[name] for name in configs}
 
 
 @building_expressions
-def _add_frame_dynamics(
-    builder: DiagramBuilder, name: str, config: DepthSensorConfig, period_s: float
-) -> PortMap:
+def depth_sensor_system(config: DepthSensorConfig, period_s: float) -> SymbolicSystem:
+    """The camera model's frames (``add_depth_sensor``) as expressions, its noise an input port.
+
+    Its ports are ``head_height_m`` and ``standard_normal`` (two draws a frame) in, ``distance_m``
+    and ``valid`` out; it updates every ``period_s``.
+    """
     delay = latency_frames(config) - 1  # the filter's next tick supplies the last frame of latency
     t = Variable("t")
     head_height = Variable("head_height_m")
@@ -343,9 +367,7 @@ def _add_frame_dynamics(
     else:
         valid = in_range
     next_history = [head_height - mount] + list(history[:-1]) if delay > 0 else []
-    return add_named_symbolic_system(
-        builder,
-        name,
+    return SymbolicSystem(
         inputs=[
             ("head_height_m", [head_height]),
             ("standard_normal", [normal, dropout_draw]),

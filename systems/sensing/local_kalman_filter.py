@@ -39,7 +39,8 @@ from maskless.errors import ConfigError
 from maskless.systems.config_loading import UNSET
 from maskless.systems.named_symbolic_system import (
     PortMap,
-    add_named_symbolic_system,
+    SymbolicSystem,
+    add_symbolic_system,
     building_expressions,
     diagram_form,
 )
@@ -109,21 +110,8 @@ def steady_state_covariances(dt, acceleration_variance, measurement_variance):
     return prior, posterior
 
 
-@building_expressions
-def add_local_kalman_filter(
-    builder: DiagramBuilder,
-    name: str,
-    *,
-    camera_height_m: float,
-    frame_period_s: float,
-    acceleration_variance_m2_s4: float,
-    measurement_variance_m2: float,
-    initial_height_m: float,
-    valid_range_m: tuple[float, float],
-    config: LocalFilterConfig,
-    detection: FaultDetectionConfig,
-) -> PortMap:
-    """Adds one local filter to ``builder``.
+def add_local_kalman_filter(builder: DiagramBuilder, name: str, **filter_arguments) -> PortMap:
+    """Adds one local filter to ``builder`` (``local_kalman_filter_system`` says what it is).
 
     .. pydrake_system::
 
@@ -139,6 +127,30 @@ def add_local_kalman_filter(
     Args:
         builder: where the filter's systems go.
         name: the filter's name.
+        filter_arguments: the keyword arguments of ``local_kalman_filter_system``.
+    """
+    return add_symbolic_system(builder, name, local_kalman_filter_system(name, **filter_arguments))
+
+
+@building_expressions
+def local_kalman_filter_system(
+    name: str,
+    *,
+    camera_height_m: float,
+    frame_period_s: float,
+    acceleration_variance_m2_s4: float,
+    measurement_variance_m2: float,
+    initial_height_m: float,
+    valid_range_m: tuple[float, float],
+    config: LocalFilterConfig,
+    detection: FaultDetectionConfig,
+) -> SymbolicSystem:
+    """One local filter's expressions, to add alone or in a bank (``add_symbolic_bank``).
+
+    Its ports are those of ``add_local_kalman_filter``.
+
+    Args:
+        name: the filter's name (in errors).
         camera_height_m: the camera's height above the table; height = camera_height_m - distance.
         frame_period_s: the camera's frame period, the filter's tick (s).
         acceleration_variance_m2_s4: σ_a² (m²/s⁴).
@@ -215,9 +227,7 @@ def add_local_kalman_filter(
         if_then_else(repeated >= frames_in(detection.stuck_after_s, frame_rate_hz), 1.0, 0.0),
     ]
     x_now, P_now = predict(x, P, t - last_tick, acceleration_variance_m2_s4)
-    return add_named_symbolic_system(
-        builder,
-        name,
+    return SymbolicSystem(
         inputs=[("distance_m", [distance]), ("valid", [valid])],
         outputs=[
             ("estimated_state", list(x_now)),

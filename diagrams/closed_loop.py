@@ -48,7 +48,7 @@ from maskless.systems.fault_injection import (
 from maskless.systems.hammerstein_model import HammersteinModel
 from maskless.systems.late_random_sources import LateRandomSources
 from maskless.systems.linear_model import LinearModel
-from maskless.systems.named_symbolic_system import PortMap, add_symbolic_bank
+from maskless.systems.named_symbolic_system import PortMap, add_symbolic_banks
 from maskless.systems.paper_parameters import paper_filter_variances_si
 from maskless.systems.plant.hammerstein_plant import add_hammerstein_plant
 from maskless.systems.plant.linear_model_plant import (
@@ -309,13 +309,11 @@ def add_sensing_chain(
     variances = paper_filter_variances_si(config.paper)
     sensors = add_cameras(builder, config, head_height, frames, late)
     # The filters of one frame rate are one bank (a step costs less than a system each).
-    by_period = {}
-    for name, sensor_config in config.cameras.items():
-        frame_period_s = 1.0 / sensor_config.frame_rate_hz
-        by_period.setdefault(frame_period_s, {})[f"{name}_filter"] = local_kalman_filter_system(
+    systems = {
+        f"{name}_filter": local_kalman_filter_system(
             f"{name}_filter",
             camera_height_m=sensor_config.mount_height_m,
-            frame_period_s=frame_period_s,
+            frame_period_s=1.0 / sensor_config.frame_rate_hz,
             acceleration_variance_m2_s4=variances["acceleration_variance_m2_s4"],
             measurement_variance_m2=variances[sensor_config.model],
             initial_height_m=start_height_m,
@@ -323,9 +321,9 @@ def add_sensing_chain(
             config=config.local_filter,
             detection=config.fault_detection,
         )
-    added = {}
-    for members in by_period.values():
-        added |= add_symbolic_bank(builder, members)
+        for name, sensor_config in config.cameras.items()
+    }
+    added = add_symbolic_banks(builder, systems)
     filters = {}
     for name in config.cameras:
         filters[name] = added[f"{name}_filter"]

@@ -17,7 +17,7 @@ components store their state relative to the configured initial value: a fresh C
 where it should, with no set-up call a user could forget.
 
 Components of one kind that run side by side at one period (the cameras, their local filters) can
-also be added as one system, a bank (``add_symbolic_bank``): each member keeps its named ports and
+also be added as one system, a bank (``add_symbolic_banks``): each member keeps its named ports and
 its expressions, evaluated exactly as they would be alone. Every system with state costs each
 simulation step a pass of cache invalidation over everything downstream of it, and every system
 and port its share of each such pass, so one system in place of two is cheaper (measured in the
@@ -141,28 +141,30 @@ def add_symbolic_system(builder: DiagramBuilder, name: str, system: SymbolicSyst
     )
 
 
-def add_symbolic_bank(
+def add_symbolic_banks(
     builder: DiagramBuilder, members: Mapping[str, SymbolicSystem]
 ) -> dict[str, PortMap]:
-    """Adds ``members`` as one SymbolicVectorSystem; returns each member's ports by its name.
+    """Adds ``members`` as one SymbolicVectorSystem per update period; returns their ports by name.
 
-    The bank is named by its members' names joined with "+" (a single member is added alone,
-    under its own name). Its state, inputs and outputs are the members' in turn, and each member's
-    expressions are its own, so every value is what the member would compute alone, bit for bit;
-    the members share one time variable (the first member's).
-
-    Raises:
-        ValueError: the members do not share one update period, or a member name is empty.
+    Each bank is named by its members' names joined with "+" (a member alone in its period is
+    added under its own name). A bank's state, inputs and outputs are its members' in turn, and
+    each member's expressions are its own, so every value is what the member would compute alone,
+    bit for bit; the members share one time variable (the first member's).
     """
+    by_period: dict[float, dict[str, SymbolicSystem]] = {}
+    for name, system in members.items():
+        by_period.setdefault(system.time_period, {})[name] = system
+    ports = {}
+    for banked in by_period.values():
+        ports |= _add_bank(builder, banked)
+    return {name: ports[name] for name in members}
+
+
+def _add_bank(builder: DiagramBuilder, members: Mapping[str, SymbolicSystem]) -> dict[str, PortMap]:
+    """One SymbolicVectorSystem for ``members``, which share one update period."""
     if len(members) == 1:
         ((name, system),) = members.items()
         return {name: add_symbolic_system(builder, name, system)}
-    periods = {system.time_period for system in members.values()}
-    if len(periods) != 1 or "" in members:
-        raise ValueError(
-            "a bank's members need one update period and a name each; got "
-            + ", ".join(f"{name!r}: {system.time_period} s" for name, system in members.items())
-        )
     times = [system.time for system in members.values() if system.time is not None]
     time = times[0] if times else None
 
@@ -191,7 +193,7 @@ def add_symbolic_bank(
         state=[variable for system in members.values() for variable in system.state],
         dynamics=[shared_time(system, e) for system in members.values() for e in system.dynamics],
         time=time,
-        time_period=periods.pop(),
+        time_period=next(iter(members.values())).time_period,
     )
     by_member = {member: PortMap() for member in members}
     for side in ("inputs", "outputs"):

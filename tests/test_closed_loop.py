@@ -84,7 +84,7 @@ def test_diagram_names_its_subsystems_and_exports_named_outputs(
         own_systems
         | {
             "reference",
-            # The cameras and their filters, each kind one bank (add_symbolic_bank).
+            # The cameras and their filters, each kind one bank (add_symbolic_banks).
             "kinect_v1+kinect_v2",
             "kinect_v1_filter+kinect_v2_filter",
             "kinect_v1.noise",

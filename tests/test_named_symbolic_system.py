@@ -10,7 +10,7 @@ from pydrake.systems.primitives import ConstantVectorSource
 from maskless.systems.named_symbolic_system import (
     SymbolicSystem,
     add_named_symbolic_system,
-    add_symbolic_bank,
+    add_symbolic_banks,
     add_symbolic_system,
     parameter_source,
 )
@@ -83,7 +83,7 @@ def run_members(bank: bool, steps: int = 7) -> dict[str, np.ndarray]:
     members = {"first": clock_member(0.1), "second": clock_member(-0.7)}
     builder = DiagramBuilder()
     if bank:
-        ports = add_symbolic_bank(builder, members)
+        ports = add_symbolic_banks(builder, members)
     else:
         ports = {name: add_symbolic_system(builder, name, m) for name, m in members.items()}
     for index, name in enumerate(members):
@@ -109,19 +109,13 @@ def test_a_bank_computes_what_its_members_compute_alone_bit_for_bit():
     assert banked["first"][0] == pytest.approx(x + 3.5, rel=1e-12)
 
 
-def test_a_bank_is_one_system_named_by_its_members():
+def test_a_bank_is_one_system_per_period_named_by_its_members():
     builder = DiagramBuilder()
-    ports = add_symbolic_bank(builder, {"first": clock_member(0.1), "second": clock_member(2.0)})
+    members = {"first": clock_member(0.1), "second": clock_member(2.0)}
+    ports = add_symbolic_banks(builder, {**members, "fast": clock_member(1.0, 0.1)})
     names = {system.get_name() for system in builder.GetSystems()}
-    assert "first+second" in names and not {"first", "second"} & names
-    assert set(ports) == {"first", "second"} and set(ports["second"].outputs) == {"y"}
+    assert {"first+second", "fast"} <= names and not {"first", "second"} & names
+    assert set(ports) == {"first", "second", "fast"} and set(ports["second"].outputs) == {"y"}
     builder = DiagramBuilder()
-    add_symbolic_bank(builder, {"alone": clock_member(0.1)})
+    add_symbolic_banks(builder, {"alone": clock_member(0.1)})
     assert {system.get_name() for system in builder.GetSystems()} == {"alone"}
-
-
-def test_members_of_different_periods_are_refused_by_name():
-    with pytest.raises(ValueError, match=r"'fast': 0.1 s, 'slow': 0.5 s"):
-        add_symbolic_bank(
-            DiagramBuilder(), {"fast": clock_member(1.0, 0.1), "slow": clock_member(1.0)}
-        )

@@ -37,7 +37,7 @@ from maskless.systems.limits import FRAME_RATE_HZ, LATENCY_S, at_least_half_a_fr
 from maskless.systems.named_symbolic_system import (
     PortMap,
     SymbolicSystem,
-    add_symbolic_bank,
+    add_symbolic_banks,
     building_expressions,
     diagram_form,
 )
@@ -316,24 +316,22 @@ def add_depth_sensors(
     """Adds a camera model per entry of ``configs`` (name -> parameters); returns their ports.
 
     Each camera is what ``add_depth_sensor`` adds, with its own noise source; cameras of one
-    frame rate are one bank (``named_symbolic_system.add_symbolic_bank``), which a step costs
+    frame rate are one bank (``named_symbolic_system.add_symbolic_banks``), which a step costs
     less than a system each. The noise sources are added in the order of ``configs``, so a seed
     draws the same noise either way.
     """
-    noises, by_period = {}, {}
+    noises, systems = {}, {}
     for name, config in configs.items():
         validate_sensor_config(name, config)
         period_s = 1.0 / config.frame_rate_hz
         noises[name] = builder.AddNamedSystem(
             f"{name}.noise", RandomSource(RandomDistribution.kGaussian, 2, period_s)
         )
-        by_period.setdefault(period_s, {})[name] = depth_sensor_system(config, period_s)
-    ports = {}
-    for members in by_period.values():
-        ports |= add_symbolic_bank(builder, members)
+        systems[name] = depth_sensor_system(config, period_s)
+    ports = add_symbolic_banks(builder, systems)
     for name, noise in noises.items():
         builder.Connect(noise.get_output_port(), ports[name].inputs.pop("standard_normal"))
-    return {name: ports[name] for name in configs}
+    return ports
 
 
 @building_expressions

@@ -145,7 +145,7 @@ def local_kalman_filter_system(
     config: LocalFilterConfig,
     detection: FaultDetectionConfig,
 ) -> SymbolicSystem:
-    """One local filter's expressions, to add alone or in a bank (``add_symbolic_bank``).
+    """One local filter's expressions, to add alone or in a bank (``add_symbolic_banks``).
 
     Its ports are those of ``add_local_kalman_filter``.
 

@@ -149,7 +149,8 @@ def add_symbolic_banks(
     Each bank is named by its members' names joined with "+" (a member alone in its period is
     added under its own name). A bank's state, inputs and outputs are its members' in turn, and
     each member's expressions are its own, so every value is what the member would compute alone,
-    bit for bit; the members share one time variable (the first member's).
+    bit for bit; the members share one time variable (members that use time make their time
+    variable before their others, as the cameras and filters do: ``_add_bank`` says why).
     """
     by_period: dict[float, dict[str, SymbolicSystem]] = {}
     for name, system in members.items():
@@ -165,8 +166,11 @@ def _add_bank(builder: DiagramBuilder, members: Mapping[str, SymbolicSystem]) ->
     if len(members) == 1:
         ((name, system),) = members.items()
         return {name: add_symbolic_system(builder, name, system)}
+    # The oldest of the members' time variables: a member that makes its time variable first
+    # then sees time still ordered before its other variables, so its sums add their terms in the
+    # same order as alone (a sum's terms are ordered by variable id), bit for bit.
     times = [system.time for system in members.values() if system.time is not None]
-    time = times[0] if times else None
+    time = min(times, key=lambda variable: variable.get_id()) if times else None
 
     def shared_time(system: SymbolicSystem, expression) -> Expression:
         expression = _as_expression(expression)

@@ -66,47 +66,68 @@ def test_a_fixed_or_missing_parameter_is_refused():
     np.testing.assert_array_equal(source.get_values(context), [0.5, 0.5, 2.0, 7.0])
 
 
-def clock_member(scale: float, period_s: float = 0.5) -> SymbolicSystem:
-    """A member with its own time variable: x[n+1] = x[n] / 3 + scale t u, output x + t."""
-    t, u, x = Variable("t"), Variable("u"), Variable("x")
+PERIOD_S = 0.3
+
+
+def clock_member(scale: float, period_s: float = PERIOD_S) -> SymbolicSystem:
+    """A member with its own time variable, made first: x[n+1] = x[n] / 3 + s t u w + t + u.
+
+    Its output is x + t. The product of three variables and the sum of two are where a time
+    variable ordered after the member's others would change the order of the operations (and
+    so the last bits).
+    """
+    t, u, w, x = Variable("t"), Variable("u"), Variable("w"), Variable("x")
     return SymbolicSystem(
-        inputs=[("u", [u])],
+        inputs=[("u", [u, w])],
         outputs=[("y", [x + t])],
         state=[x],
-        dynamics=[x / 3.0 + scale * t * u],
+        dynamics=[x / 3.0 + scale * t * u * w + t + u],
         time=t,
         time_period=period_s,
     )
 
 
-def run_members(bank: bool, steps: int = 7) -> dict[str, np.ndarray]:
-    members = {"first": clock_member(0.1), "second": clock_member(-0.7)}
+def run_members(bank: bool, made_in_reverse: bool, steps: int = 300) -> dict[str, np.ndarray]:
+    """Each member's output at every step, the two members banked or added alone."""
+    if made_in_reverse:  # the second member's variables are older than the first's
+        second = clock_member(-0.7)
+        members = {"first": clock_member(0.1), "second": second}
+    else:
+        members = {"first": clock_member(0.1), "second": clock_member(-0.7)}
     builder = DiagramBuilder()
     if bank:
         ports = add_symbolic_banks(builder, members)
     else:
         ports = {name: add_symbolic_system(builder, name, m) for name, m in members.items()}
     for index, name in enumerate(members):
-        source = builder.AddSystem(ConstantVectorSource([1.3 + index]))
+        source = builder.AddSystem(ConstantVectorSource([1.3 + index, 0.77]))
         builder.Connect(source.get_output_port(), ports[name].inputs["u"])
         builder.ExportOutput(ports[name].outputs["y"], name)
     diagram = builder.Build()
     simulator = Simulator(diagram)
-    simulator.AdvanceTo(0.5 * steps)
-    context = simulator.get_context()
-    return {name: diagram.GetOutputPort(name).Eval(context) for name in members}
+    outputs = {name: [] for name in members}
+    for step in range(steps):
+        simulator.AdvanceTo(PERIOD_S * step)
+        for name in members:
+            outputs[name].append(diagram.GetOutputPort(name).Eval(simulator.get_context())[0])
+    return {name: np.array(values) for name, values in outputs.items()}
 
 
-def test_a_bank_computes_what_its_members_compute_alone_bit_for_bit():
-    alone, banked = run_members(bank=False), run_members(bank=True)
+@pytest.mark.parametrize("made_in_reverse", [False, True])
+def test_a_bank_computes_what_its_members_compute_alone_bit_for_bit(made_in_reverse):
+    alone = run_members(bank=False, made_in_reverse=made_in_reverse)
+    banked = run_members(bank=True, made_in_reverse=made_in_reverse)
     assert alone.keys() == banked.keys()
     for name in alone:
         np.testing.assert_array_equal(banked[name], alone[name])
-    # Against the closed form: x[n+1] = x[n] / 3 + scale t[n] u from x[0] = 0, t[n] = n / 2.
-    x = 0.0
-    for n in range(7):
-        x = x / 3.0 + 0.1 * (0.5 * n) * 1.3
-    assert banked["first"][0] == pytest.approx(x + 3.5, rel=1e-12)
+    # Against the closed form from x[0] = 0, t[n] = 0.3 n: after advancing to t[n] >= 0.3 the
+    # output is x[n] + t[n], the updates at t[0] .. t[n-1] applied (at t = 0 the first already is).
+    x, expected = 0.0, []
+    for n in range(300):
+        t = PERIOD_S * n
+        expected.append(x + t)
+        x = x / 3.0 + 0.1 * t * 1.3 * 0.77 + t + 1.3
+    np.testing.assert_allclose(banked["first"][1:], expected[1:], rtol=1e-10)
 
 
 def test_a_bank_is_one_system_per_period_named_by_its_members():

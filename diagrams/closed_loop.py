@@ -48,7 +48,7 @@ from maskless.systems.fault_injection import (
 from maskless.systems.hammerstein_model import HammersteinModel
 from maskless.systems.late_random_sources import LateRandomSources
 from maskless.systems.linear_model import LinearModel
-from maskless.systems.named_symbolic_system import PortMap, add_symbolic_banks
+from maskless.systems.named_symbolic_system import PortMap
 from maskless.systems.paper_parameters import paper_filter_variances_si
 from maskless.systems.plant.hammerstein_plant import add_hammerstein_plant
 from maskless.systems.plant.linear_model_plant import (
@@ -68,6 +68,7 @@ from maskless.systems.sensing.depth_sensor import add_depth_sensor, add_depth_se
 from maskless.systems.sensing.local_kalman_filter import local_kalman_filter_system
 from maskless.systems.sensing.pressure_sensor import add_pressure_sensor
 from maskless.systems.sensing.track_fusion import add_track_fusion
+from maskless.systems.symbolic_banks import add_symbolic_banks
 
 PNEUMATIC_PLANT_NAME = "pneumatic_plant"
 # The closed loop's head-height reference (``step_reference``), whose levels a Context can change.
@@ -227,8 +228,8 @@ def add_cameras(
     builder: DiagramBuilder,
     config: Scenario,
     head_height: OutputPort,
-    frames: list[CameraFrame] | None = None,
-    late: LateRandomSources | None = None,
+    frames: list[CameraFrame] | None,
+    late: LateRandomSources,
 ) -> dict[str, PortMap]:
     """Adds every camera watching ``head_height``: a measurement model, or a rendered camera.
 
@@ -236,7 +237,8 @@ def add_cameras(
     and finds the face in its images; either way its ``error`` section, when enabled, is added to
     what it measures; with ``frames``, each rendered camera appends a frame to it
     at least ``config.camera_image_rate_hz`` times a second (every whole number of frames that
-    gives it: every 7th of 15 frames a second for 2 Hz).
+    gives it: every 7th of 15 frames a second for 2 Hz). The RandomSources of the cameras'
+    errors and faults wait in ``late``, so the cameras' own sources keep their seeding order.
     """
     sensors = {}
     scene = None
@@ -298,8 +300,8 @@ def add_sensing_chain(
     config: Scenario,
     head_height: OutputPort,
     start_height_m,
-    frames: list[CameraFrame] | None = None,
-    late: LateRandomSources | None = None,
+    frames: list[CameraFrame] | None,
+    late: LateRandomSources,
 ) -> SensingChain:
     """Adds every camera watching ``head_height``, a local Kalman filter on each, and the fusion.
 

@@ -16,13 +16,9 @@ The default state of a SymbolicVectorSystem is zero and cannot be changed from P
 components store their state relative to the configured initial value: a fresh Context then starts
 where it should, with no set-up call a user could forget.
 
-Components of one kind that run side by side at one period (the cameras, their local filters) can
-also be added as one system, a bank (``add_symbolic_banks``): each member keeps its named ports and
-its expressions, evaluated exactly as they would be alone. Every system with state costs each
-simulation step a pass of cache invalidation over everything downstream of it, and every system
-and port its share of each such pass, so one system in place of two is cheaper (measured in the
-closed loop: ``benchmarks/closed_loop.py``). A component that can be banked describes itself as
-a ``SymbolicSystem`` before it is added.
+A component may describe itself as a ``SymbolicSystem`` before it is added, so that it can be
+added alone (``add_symbolic_system``) or with others of its kind as one system
+(``symbolic_banks``).
 
 Constants a Context may change (a patient's head mass in a Monte Carlo run) are symbolic variables
 held by a ``ParameterSource``, ``{name}.parameters``, as its numeric parameter, whose default is the
@@ -40,7 +36,7 @@ values, through its input vector.
 
 import functools
 import inspect
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -64,8 +60,6 @@ from maskless.errors import ConfigError
 
 # The internal name of the input that carries the constants into the system's input vector.
 _CONSTANTS_INPUT = "constants"
-# Between a bank member's name and its port's name in the bank's own port names.
-_BANK_SEPARATOR = "/"
 
 
 @dataclass
@@ -139,72 +133,6 @@ def add_symbolic_system(builder: DiagramBuilder, name: str, system: SymbolicSyst
         time=system.time,
         time_period=system.time_period,
     )
-
-
-def add_symbolic_banks(
-    builder: DiagramBuilder, members: Mapping[str, SymbolicSystem]
-) -> dict[str, PortMap]:
-    """Adds ``members`` as one SymbolicVectorSystem per update period; returns their ports by name.
-
-    Each bank is named by its members' names joined with "+" (a member alone in its period is
-    added under its own name). A bank's state, inputs and outputs are its members' in turn, and
-    each member's expressions are its own, so every value is what the member would compute alone,
-    bit for bit; the members share one time variable (members that use time make their time
-    variable before their others, as the cameras and filters do: ``_add_bank`` says why).
-    """
-    by_period: dict[float, dict[str, SymbolicSystem]] = {}
-    for name, system in members.items():
-        by_period.setdefault(system.time_period, {})[name] = system
-    ports = {}
-    for banked in by_period.values():
-        ports |= _add_bank(builder, banked)
-    return {name: ports[name] for name in members}
-
-
-def _add_bank(builder: DiagramBuilder, members: Mapping[str, SymbolicSystem]) -> dict[str, PortMap]:
-    """One SymbolicVectorSystem for ``members``, which share one update period."""
-    if len(members) == 1:
-        ((name, system),) = members.items()
-        return {name: add_symbolic_system(builder, name, system)}
-    # The oldest of the members' time variables: a member that makes its time variable first
-    # then sees time still ordered before its other variables, so its sums add their terms in the
-    # same order as alone (a sum's terms are ordered by variable id), bit for bit.
-    times = [system.time for system in members.values() if system.time is not None]
-    time = min(times, key=lambda variable: variable.get_id()) if times else None
-
-    def shared_time(system: SymbolicSystem, expression) -> Expression:
-        expression = _as_expression(expression)
-        if time is None or system.time is None or system.time.EqualTo(time):
-            return expression
-        return expression.Substitute(system.time, Expression(time))
-
-    def bank_port(member: str, port: str) -> str:
-        return f"{member}{_BANK_SEPARATOR}{port}"
-
-    ports = add_named_symbolic_system(
-        builder,
-        "+".join(members),
-        inputs=[
-            (bank_port(member, port), variables)
-            for member, system in members.items()
-            for port, variables in system.inputs
-        ],
-        outputs=[
-            (bank_port(member, port), [shared_time(system, e) for e in expressions])
-            for member, system in members.items()
-            for port, expressions in system.outputs
-        ],
-        state=[variable for system in members.values() for variable in system.state],
-        dynamics=[shared_time(system, e) for system in members.values() for e in system.dynamics],
-        time=time,
-        time_period=next(iter(members.values())).time_period,
-    )
-    by_member = {member: PortMap() for member in members}
-    for side in ("inputs", "outputs"):
-        for bank_name, port in getattr(ports, side).items():
-            member, port_name = bank_name.split(_BANK_SEPARATOR, 1)
-            getattr(by_member[member], side)[port_name] = port
-    return by_member
 
 
 def building_expressions(function):

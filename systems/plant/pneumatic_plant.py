@@ -311,13 +311,7 @@ def PneumaticPlant_(T):  # noqa: N802 (Drake template naming)
             self._inputs = [self.DeclareVectorInputPort(name, 1) for name in INPUT_NAMES]
             self.DeclareVectorOutputPort("head_height_m", 1, self._calc_head_height)
             self.DeclareStateOutputPort("state", state_index)
-            self.DeclareVectorOutputPort(
-                "bladder_gauge_pressure_pa",
-                1,
-                lambda context, output: output.SetAtIndex(
-                    0, context.get_continuous_state_vector()[GAUGE_PRESSURE]
-                ),
-            )
+            self.DeclareVectorOutputPort("bladder_gauge_pressure_pa", 1, self._calc_gauge_pressure)
 
         def _construct_copy(self, other, converter=None):
             Impl._construct(self, other._parameters, other._initial_state, converter)
@@ -339,6 +333,9 @@ def PneumaticPlant_(T):  # noqa: N802 (Drake template naming)
         def _calc_head_height(self, context, output):
             state = context.get_continuous_state_vector().CopyToVector()
             output.SetAtIndex(0, head_height_m(state, self.parameters(context)))
+
+        def _calc_gauge_pressure(self, context, output):
+            output.SetAtIndex(0, context.get_continuous_state_vector()[GAUGE_PRESSURE])
 
     return Impl
 

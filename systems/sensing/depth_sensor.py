@@ -37,11 +37,11 @@ from maskless.systems.limits import FRAME_RATE_HZ, LATENCY_S, at_least_half_a_fr
 from maskless.systems.named_symbolic_system import (
     PortMap,
     SymbolicSystem,
-    add_symbolic_banks,
     building_expressions,
     diagram_form,
 )
 from maskless.systems.sensing.camera_error import CameraErrorConfig
+from maskless.systems.symbolic_banks import add_symbolic_banks
 from maskless.systems.units import mm_to_m
 
 # Kinect v1 disparity-to-depth model z = 1 / (DISPARITY_SLOPE d + DISPARITY_INTERCEPT), d the 11-bit
@@ -316,7 +316,7 @@ def add_depth_sensors(
     """Adds a camera model per entry of ``configs`` (name -> parameters); returns their ports.
 
     Each camera is what ``add_depth_sensor`` adds, with its own noise source; cameras of one
-    frame rate are one bank (``named_symbolic_system.add_symbolic_banks``), which a step costs
+    frame rate are one bank (``symbolic_banks.add_symbolic_banks``), which a step costs
     less than a system each. The noise sources are added in the order of ``configs``, so a seed
     draws the same noise either way.
     """

@@ -127,7 +127,9 @@ def add_local_kalman_filter(builder: DiagramBuilder, name: str, **filter_argumen
     Args:
         builder: where the filter's systems go.
         name: the filter's name.
-        filter_arguments: the keyword arguments of ``local_kalman_filter_system``.
+        **filter_arguments: the keyword arguments of ``local_kalman_filter_system`` (the
+            camera's height and frame period, the variances, the start, the range, ``config``
+            and ``detection``).
     """
     return add_symbolic_system(builder, name, local_kalman_filter_system(name, **filter_arguments))
 

@@ -5,7 +5,8 @@ SymbolicVectorSystem, a bank, each keeps its named ports and its own expressions
 as they would be alone. Every system with state costs each simulation step a pass of cache
 invalidation over everything downstream of it, which in a feedback loop is the whole loop, and
 every system and port its share of each pass: one system in place of two is cheaper (measured in
-the closed loop, ``benchmarks/closed_loop.py``; the README says by how much).
+one process, the closed loop's tick took 119-125 µs with its cameras and its filters banked and
+129-133 µs with each added alone).
 
 Same bits: a sum's or a product's terms are evaluated in the order of their variables' ids, and a
 member's expressions keep their own variables, except time, which the members of a bank share.

@@ -39,10 +39,8 @@ def add_symbolic_banks(
     bit for bit (module docstring).
 
     Raises:
-        ValueError: a member that uses time made its time variable after one of its others.
+        ValueError: a member that shares a bank made its time variable after one of its others.
     """
-    for name, system in members.items():
-        _check_time_is_oldest(name, system)
     by_period: dict[float, dict[str, SymbolicSystem]] = {}
     for name, system in members.items():
         by_period.setdefault(system.time_period, {})[name] = system
@@ -69,6 +67,9 @@ def _add_bank(builder: DiagramBuilder, members: Mapping[str, SymbolicSystem]) ->
     if len(members) == 1:
         ((name, system),) = members.items()
         return {name: add_symbolic_system(builder, name, system)}
+    # Only a member that shares a bank has its time replaced, so only it must make time first.
+    for name, system in members.items():
+        _check_time_is_oldest(name, system)
     times = [system.time for system in members.values() if system.time is not None]
     time = min(times, key=Variable.get_id) if times else None
 

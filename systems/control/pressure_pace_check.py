@@ -36,6 +36,7 @@ from pydrake.symbolic import Expression, Formula, if_then_else, logical_and, log
 from pydrake.symbolic import max as symbolic_max
 
 from maskless.systems.config_loading import UNSET, refuse_out_of_range
+from maskless.systems.ordered_conditions import if_all
 
 # How much of the commands' earlier changes still explains the pressure's moves, per tick.
 COMMAND_FADE = 0.7
@@ -129,14 +130,15 @@ class PaceCheck:
         pace: its next pace (Pa per tick).
         rise: the rises' next sum (Pa).
         fall: the falls' next sum (Pa).
-        jump: this tick's sums show a jump.
+        jump: this tick's sums show a jump when all of these hold (``if_all``; the one that
+            needs no supervisor state first).
     """
 
     level: Expression
     pace: Expression
     rise: Expression
     fall: Expression
-    jump: Formula
+    jump: tuple[Formula, ...]
 
 
 def pace_check(
@@ -166,27 +168,27 @@ def pace_check(
         watched: the supervisor's conditions for the sums to run, besides a still pace.
     """
     # A reading that is no number (NaN fails every comparison) leaves no residual.
-    usable = logical_and(reading >= -_READING_BOUND_PA, reading <= _READING_BOUND_PA)
+    usable = abs(reading) <= _READING_BOUND_PA
     residual = if_then_else(usable, reading - level - pace, 0.0)
     allowance = config.drift_pa + config.per_current_pa_per_a * command_activity_a
     running = logical_and(watched, abs(pace) <= config.still_pace_pa)
     # Written as comparisons of the residual, not of the next sums: each use of an expression is
-    # evaluated again at every tick.
+    # evaluated again at every tick. The excursions come before ``running`` in each choice: they
+    # are rarely true, and ``running`` reads most of the supervisor's state.
     next_rise = if_then_else(running, symbolic_max(0.0, rise + residual - allowance), 0.0)
     next_fall = if_then_else(running, symbolic_max(0.0, fall - residual - allowance), 0.0)
-    coasting = logical_and(
-        running, logical_or(residual > allowance - rise, residual < fall - allowance)
-    )
-    jump = logical_and(
-        running,
+    summing = logical_or(residual > allowance - rise, residual < fall - allowance)
+    jump = (
         logical_or(
             residual > config.alarm_pa + allowance - rise,
             residual < fall - allowance - config.alarm_pa,
         ),
+        running,
     )
-    # The first tick's level is its reading: the state starts at zero, so a gain of one.
-    level_gain = if_then_else(first, 1.0, if_then_else(coasting, 0.0, config.level_gain))
-    pace_gain = if_then_else(coasting, 0.0, config.pace_gain)
+    # While a sum runs the tracker coasts. The first tick's level is its reading: the state
+    # starts at zero, so a gain of one.
+    level_gain = if_then_else(first, 1.0, if_all([summing, running], 0.0, config.level_gain))
+    pace_gain = if_all([summing, running], 0.0, config.pace_gain)
     next_level = level + pace + level_gain * residual
     next_pace = if_then_else(first, 0.0, pace + pace_gain * residual)
     return PaceCheck(next_level, next_pace, next_rise, next_fall, jump)

@@ -93,6 +93,7 @@ from maskless.systems.named_symbolic_system import (
     building_expressions,
     diagram_form,
 )
+from maskless.systems.ordered_conditions import if_all
 from maskless.systems.units import whole_ticks
 
 CONTINUE, HOLD, VENT = "continue", "hold", "vent"
@@ -207,6 +208,11 @@ def _within(value, low, high):
     return logical_and(value >= low, value <= high)
 
 
+def _within_band(value, half_width):
+    """``-half_width <= value <= half_width``, false for NaN; ``value`` evaluated once."""
+    return abs(value) <= half_width
+
+
 @building_expressions
 def add_safety_supervisor(
     builder: DiagramBuilder,
@@ -276,7 +282,8 @@ def add_safety_supervisor(
     # What the valves get follows from the latched reasons alone, so it is no state of its own:
     # the update would evaluate every check again to set it.
     venting = _acting(latched, VENT)
-    supervising = logical_or(venting, _acting(latched, HOLD))  # holding or venting
+    hold_latched = _acting(latched, HOLD)
+    supervising = logical_or(venting, hold_latched)  # holding or venting
     held_inlet, held_outlet = Variable("held_inlet_a"), Variable("held_outlet_a")
     averaging = Variable("averaging")  # 1 once the held currents' average has its first command
     # Durations as whole ticks: a sum of float periods drifts, and a limit that is no whole number
@@ -306,7 +313,7 @@ def add_safety_supervisor(
     inlet_out, outlet_out = _valve_currents(
         inlet,
         outlet,
-        supervising,
+        hold_latched,
         venting,
         held_inlet,
         held_outlet,
@@ -329,9 +336,7 @@ def add_safety_supervisor(
         # The commands' changes up to the tick before (pressure_pace_check says why).
         command_activity_a=last_activity,
         first=elapsed < 0.5,
-        watched=logical_and(
-            commands_tracked, _within(estimated - reference, -tolerance_m, tolerance_m)
-        ),
+        watched=logical_and(commands_tracked, _within_band(estimated - reference, tolerance_m)),
     )
     shut_check = shut_inlet_check(
         config.shut_inlet,
@@ -345,56 +350,57 @@ def add_safety_supervisor(
         watched=commands_tracked,
     )
     seen = tracks_used > 0.5
+    # Each check fails when all its conditions hold, tested in order (``if_all``): the one most
+    # often false first, so that on most ticks the others are never evaluated.
     failing = {
-        "camera_excluded": logical_and(
-            logical_and(watching, seen), tracks_used < camera_count - 0.5
-        ),
-        "no_camera": logical_and(watching, logical_not(seen)),
-        "cameras_disagree": logical_and(
-            logical_and(watching, disagreement > 0.5),
+        "camera_excluded": (tracks_used < camera_count - 0.5, seen, watching),
+        "no_camera": (logical_not(seen), watching),
+        "cameras_disagree": (
+            disagreement > 0.5,
             disagreeing + 1 >= ticks(config.disagreement_persist_s),
+            watching,
         ),
-        "estimate_uncertain": logical_and(watching, uncertain > 0.5),
-        "outside_travel": logical_and(
-            logical_and(watching, seen),
+        "estimate_uncertain": (uncertain > 0.5, watching),
+        "outside_travel": (
             logical_not(_within(fused_height, low - margin, high + margin)),
+            seen,
+            watching,
         ),
-        "non_finite_command": logical_not(commands_finite),
-        "inlet_full_too_long": logical_and(
-            at_full_inlet, full_inlet + 1 >= ticks(config.max_full_inlet_s)
-        ),
+        "non_finite_command": (logical_not(commands_finite),),
+        "inlet_full_too_long": (full_inlet + 1 >= ticks(config.max_full_inlet_s), at_full_inlet),
         "pressure_jump": pressure_check.jump,
         "inlet_not_shut": shut_check.not_shut,
-        "overpressure": logical_not(pressure <= config.max_gauge_pressure_pa),
+        "overpressure": (logical_not(pressure <= config.max_gauge_pressure_pa),),
     }
     band = tolerance_m - config.estimate_margin_m
     # On target: both estimates within their bands, and the cameras agree.
     on_target = logical_and(
         logical_and(
-            _within(estimated - reference, -band, band),
-            _within(
-                fused_height - reference, -config.fused_error_band_m, config.fused_error_band_m
-            ),
+            _within_band(estimated - reference, band),
+            _within_band(fused_height - reference, config.fused_error_band_m),
         ),
         disagreement < 0.5,
     )
     # A reset clears the reasons whose checks pass now; one still failing stays latched.
     after_reset = {r: if_then_else(cleared, 0.0, Expression(latched[r])) for r in REASONS}
-    next_latched = [if_then_else(failing[r], 1.0, after_reset[r]) for r in REASONS]
+    next_latched = [if_all(failing[r], 1.0, after_reset[r]) for r in REASONS]
 
     nothing_latched = _latched_count(latched, REASONS) < 0.5
     # The held currents follow the commands that pass while nothing was latched and the inlet is
     # not fully open (the tick that first sees a fault still counts: its command was computed a
     # tick before); the average starts at the first such command.
-    keep = logical_and(
-        logical_and(nothing_latched, commands_finite),
-        logical_and(logical_not(at_full_inlet), logical_not(cleared)),
+    # (With nothing latched and finite commands, the inlet passed on is the command.)
+    keep = (
+        logical_not(cleared),
+        inlet < inlet_saturation_a,
+        nothing_latched,
+        commands_finite,
     )
     weight = if_then_else(
         averaging < 0.5, 1.0, 1.0 - math.exp(-period_s / config.hold_time_constant_s)
     )
     next_held = [
-        if_then_else(keep, held + weight * (command - held), Expression(held))
+        if_all(keep, held + weight * (command - held), held)
         for held, command in ((held_inlet, inlet), (held_outlet, outlet))
     ]
     next_inside = if_then_else(on_target, inside + 1, 0.0)
@@ -429,7 +435,8 @@ def add_safety_supervisor(
         (held_inlet, next_held[0]),
         (held_outlet, next_held[1]),
         *zip(latched.values(), next_latched, strict=True),
-        (averaging, if_then_else(keep, 1.0, Expression(averaging))),
+        # Once 1, it stays 1: the keep conditions are not evaluated again.
+        (averaging, if_then_else(averaging > 0.5, averaging, if_all(keep, 1.0, averaging))),
         (elapsed, elapsed + 1),
         (full_inlet, if_then_else(at_full_inlet, full_inlet + 1, 0.0)),
         (inside, next_inside),
@@ -462,7 +469,7 @@ def add_safety_supervisor(
             ("inlet_valve_current_a", [inlet_out]),
             ("outlet_valve_current_a", [outlet_out]),
             ("reasons", [Expression(latched[r]) for r in REASONS]),
-            ("mode", [if_then_else(venting, 2.0, if_then_else(supervising, 1.0, 0.0))]),
+            ("mode", [if_then_else(venting, 2.0, if_then_else(hold_latched, 1.0, 0.0))]),
             ("beam_hold", [beam_hold]),
         ],
         state=[variable for variable, _ in state_and_next],
@@ -487,20 +494,24 @@ def _acting(latched, action):
 def _commands_finite(inlet, outlet):
     """Both commands are numbers a valve driver takes."""
     return logical_and(
-        _within(inlet, -_COMMAND_BOUND_A, _COMMAND_BOUND_A),
-        _within(outlet, -_COMMAND_BOUND_A, _COMMAND_BOUND_A),
+        _within_band(inlet, _COMMAND_BOUND_A),
+        _within_band(outlet, _COMMAND_BOUND_A),
     )
 
 
 def _valve_currents(
-    inlet, outlet, supervising, venting, held_inlet, held_outlet, commands_finite, outlet_full_a
+    inlet, outlet, hold_latched, venting, held_inlet, held_outlet, commands_finite, outlet_full_a
 ):
-    """What the valves get: the commands, the held currents, or venting (``MODES``)."""
-    holding = logical_or(supervising, logical_not(commands_finite))
-    inlet_out = if_then_else(
-        venting, 0.0, if_then_else(holding, Expression(held_inlet), Expression(inlet))
-    )
-    outlet_out = if_then_else(
-        venting, outlet_full_a, if_then_else(holding, Expression(held_outlet), Expression(outlet))
-    )
+    """What the valves get: the commands, the held currents, or venting (``MODES``).
+
+    Venting is tested first, so the hold reasons are read only when it is not latched.
+    """
+
+    def passed_on(command, held):
+        return if_then_else(
+            hold_latched, held, if_then_else(commands_finite, command, Expression(held))
+        )
+
+    inlet_out = if_then_else(venting, 0.0, passed_on(inlet, held_inlet))
+    outlet_out = if_then_else(venting, outlet_full_a, passed_on(outlet, held_outlet))
     return inlet_out, outlet_out

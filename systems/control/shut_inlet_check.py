@@ -40,6 +40,7 @@ from dataclasses import dataclass
 from pydrake.symbolic import Expression, Formula, if_then_else, logical_and, logical_or
 
 from maskless.systems.config_loading import UNSET, refuse_out_of_range
+from maskless.systems.ordered_conditions import if_all
 from maskless.systems.units import whole_ticks
 
 # The fewest ticks a window can have: one to note the level, two for a command to reach it.
@@ -95,12 +96,12 @@ class ShutInletCheck:
         shut_ticks: the next count of ticks into the window.
         start_level: the next level the pressure must fall from (Pa).
         not_shut: the inlet has been shut for a window and the pressure has not fallen by
-            ``min_fall_pa``.
+            ``min_fall_pa``, when all of these hold (``if_all``; the window's end first).
     """
 
     shut_ticks: Expression
     start_level: Expression
-    not_shut: Formula
+    not_shut: tuple[Formula, ...]
 
 
 def shut_inlet_check(
@@ -125,17 +126,18 @@ def shut_inlet_check(
         watched: the supervisor's conditions for the check to run (its commands passed on, a
             tracked level to compare).
     """
-    running = logical_and(
-        logical_and(watched, inlet_command_a <= config.shut_current_a),
+    # The check runs while all hold (``if_all``): the inlet shut, most often false, first.
+    running = (
+        inlet_command_a <= config.shut_current_a,
         level >= config.min_pressure_pa,
+        watched,
     )
     # The window's first tick notes the level; its last compares with it.
-    closing = logical_and(
-        logical_and(running, shut_ticks > 0.5), shut_ticks + 1 >= hold_ticks(config, period_s)
-    )
-    opening = logical_and(running, logical_or(shut_ticks < 0.5, closing))
+    window_ends = logical_and(shut_ticks > 0.5, shut_ticks + 1 >= hold_ticks(config, period_s))
+    # Running, a window opens where none is open or one ends.
+    opens = logical_or(shut_ticks < 0.5, window_ends)
     return ShutInletCheck(
-        shut_ticks=if_then_else(opening, 1.0, if_then_else(running, shut_ticks + 1, 0.0)),
-        start_level=if_then_else(opening, Expression(level), Expression(start_level)),
-        not_shut=logical_and(closing, level > start_level - config.min_fall_pa),
+        shut_ticks=if_all(running, if_then_else(opens, 1.0, shut_ticks + 1), 0.0),
+        start_level=if_all([opens, *running], level, start_level),
+        not_shut=(window_ends, level > start_level - config.min_fall_pa, *running),
     )

@@ -71,7 +71,6 @@ from pydrake.symbolic import (
     if_then_else,
     logical_and,
     logical_not,
-    logical_or,
 )
 from pydrake.systems.framework import DiagramBuilder
 
@@ -283,7 +282,6 @@ def add_safety_supervisor(
     # the update would evaluate every check again to set it.
     venting = _acting(latched, VENT)
     hold_latched = _acting(latched, HOLD)
-    supervising = logical_or(venting, hold_latched)  # holding or venting
     held_inlet, held_outlet = Variable("held_inlet_a"), Variable("held_outlet_a")
     averaging = Variable("averaging")  # 1 once the held currents' average has its first command
     # Durations as whole ticks: a sum of float periods drifts, and a limit that is no whole number
@@ -325,7 +323,12 @@ def add_safety_supervisor(
     # The pressure checks judge the loop's own commands: not while the supervisor itself moves
     # the air (holding or venting); and from the third tick (the tracker starts at the first
     # reading and has a pace from the second).
-    commands_tracked = logical_and(logical_and(logical_not(supervising), watching), elapsed >= 2)
+    # (One sum of the reasons that hold or vent, and one count of ticks: the same truth as
+    # "not supervising, watching, from the third tick", fewer nodes to evaluate.)
+    commands_tracked = logical_and(
+        _latched_count(latched, [r for r in REASONS if SAFE_ACTIONS[r] != CONTINUE]) < 0.5,
+        elapsed >= max(2.0, ticks(config.start_grace_s)),
+    )
     pressure_check = pace_check(
         config.pressure_pace,
         level=pressure_level,

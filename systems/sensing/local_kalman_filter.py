@@ -44,6 +44,7 @@ from maskless.systems.named_symbolic_system import (
     building_expressions,
     diagram_form,
 )
+from maskless.systems.ordered_conditions import if_all
 from maskless.systems.sensing.fault_detection import (
     FaultDetectionConfig,
     frames_in,
@@ -217,7 +218,8 @@ def local_kalman_filter_system(
     next_state.append(Expression(t))
     next_state += [
         if_then_else(usable, Expression(t), Expression(last_usable)),
-        if_then_else(logical_and(in_range, logical_not(in_gate)), rejected + 1, Expression(0.0)),
+        # Out of the gate first: on most frames it is false and the range is never tested.
+        if_all([logical_not(in_gate), in_range], rejected + 1, 0.0),
         if_then_else(logical_and(valid > 0.5, distance == last_distance), repeated + 1, 0.0),
         if_then_else(valid > 0.5, Expression(distance), Expression(last_distance)),
     ]

@@ -28,6 +28,7 @@ import itertools
 import numpy as np
 import scipy.signal
 
+from maskless.analysis.identification.prediction_error import roots_mirrored_inside
 from maskless.errors import ModelError
 from maskless.systems.hammerstein_model import HammersteinModel
 from maskless.systems.plant.valve_map import ValveMap
@@ -75,9 +76,8 @@ def polynomial_reflections(a) -> np.ndarray:
     The inverse of ``reflection_polynomial`` (the step-down recursion) for a stable polynomial; an
     unstable one is first made stable with the same magnitude response shape.
     """
-    roots = np.roots(np.concatenate([[1.0], a]))
-    outside = np.abs(roots) >= 1.0
-    roots[outside] = 1.0 / np.conj(roots[outside]) * _REFLECTION_LIMIT
+    roots, outside = roots_mirrored_inside(a)
+    roots[outside] *= _REFLECTION_LIMIT
     polynomial = np.real(np.poly(roots))
     reflections = []
     while polynomial.size > 1:

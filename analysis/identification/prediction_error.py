@@ -136,21 +136,31 @@ def estimate_noise_model(
     return _minimise_prediction_error(u, y, start, free, progress)
 
 
+def roots_mirrored_inside(tail) -> tuple[np.ndarray, np.ndarray]:
+    """The roots of 1 + c1 q^-1 + ... + cn q^-n, and which lay on or outside the unit circle.
+
+    Each root r with |r| >= 1 is replaced by its mirror 1 / conj(r): the polynomial's magnitude
+    response keeps its shape (up to a constant), and a predictor or a model built on it becomes
+    stable. Roots already inside are kept. Returns (complex roots, boolean mask of those moved).
+    """
+    roots = np.roots(np.concatenate([[1.0], tail])).astype(complex)
+    outside = np.abs(roots) >= 1.0
+    roots[outside] = 1.0 / np.conj(roots[outside])
+    return roots, outside
+
+
 def stable_noise_polynomial(c: np.ndarray) -> np.ndarray:
     """C(q)'s coefficients c1..cn with every root on or outside the unit circle moved inside.
 
-    A root r with |r| >= 1 is reflected to 1 / conj(r), which leaves the noise spectrum
-    |C(e^jw)|^2 unchanged up to a constant (the same noise model, now with a stable predictor),
-    then kept at least ``1 - _START_ROOT_RADIUS`` inside the circle so the predictor's transient
-    decays within a few hundred samples. Roots already inside are kept.
+    The root is mirrored inside (``roots_mirrored_inside``: the same noise spectrum up to a
+    constant, now with a stable predictor), then kept at least ``1 - _START_ROOT_RADIUS`` inside
+    the circle so the predictor's transient decays within a few hundred samples.
     """
-    roots = np.roots(np.concatenate([[1.0], c])).astype(complex)
-    outside = np.abs(roots) >= 1.0
+    roots, outside = roots_mirrored_inside(c)
     if not outside.any():
         return np.asarray(c, float)
-    reflected = roots[outside] / np.abs(roots[outside]) ** 2
-    radius = np.minimum(np.abs(reflected), _START_ROOT_RADIUS)
-    roots[outside] = radius * np.exp(1j * np.angle(reflected))
+    radius = np.minimum(np.abs(roots[outside]), _START_ROOT_RADIUS)
+    roots[outside] = radius * np.exp(1j * np.angle(roots[outside]))
     return np.real(np.poly(roots))[1:]
 
 

@@ -149,18 +149,23 @@ def test_a_noise_polynomial_is_reflected_inside_with_the_same_spectrum_shape():
     np.testing.assert_array_equal(stable_noise_polynomial(np.array([-0.5, 0.06])), [-0.5, 0.06])
 
 
-def test_roots_on_or_outside_the_circle_are_mirrored_to_one_over_their_conjugate():
-    # 1/conj(r): 2 -> 0.5, -1.1 -> -1/1.1, 1.5 e^(0.7j) -> e^(0.7j) / 1.5; 0.3 stays.
-    outside_pair = 1.5 * np.exp(0.7j)
-    roots_in = [2.0, -1.1, 0.3, outside_pair, np.conj(outside_pair)]
-    roots, moved = roots_mirrored_inside(np.real(np.poly(roots_in))[1:])
-    expected = {2.0: 0.5, -1.1: -1 / 1.1, 0.3: 0.3}
-    expected[outside_pair] = np.exp(0.7j) / 1.5
-    expected[np.conj(outside_pair)] = np.exp(-0.7j) / 1.5
-    want = sorted(expected.values(), key=lambda r: (round(r.real, 6), round(r.imag, 6)))
-    got = sorted(roots, key=lambda r: (round(r.real, 6), round(r.imag, 6)))
-    np.testing.assert_allclose(got, want, atol=1e-7)
+def test_roots_on_or_outside_the_circle_are_mirrored_and_named():
+    # 2 -> 0.5, -1.1 -> -1/1.1, 1.5 e^(±0.7j) -> e^(±0.7j) / 1.5; 0.3 stays.
+    pair = 1.5 * np.exp(0.7j)
+    roots, moved = roots_mirrored_inside(
+        np.real(np.poly([2.0, -1.1, 0.3, pair, np.conj(pair)]))[1:]
+    )
+    want = [0.5, -1 / 1.1, 0.3, np.exp(0.7j) / 1.5, np.exp(-0.7j) / 1.5]
+
+    def order(r):
+        return (round(r.real, 6), round(r.imag, 6))
+
+    np.testing.assert_allclose(sorted(roots, key=order), sorted(want, key=order), atol=1e-7)
     assert moved.sum() == 4
+    # A root on the circle is named and stays on it (the callers pull it inside).
+    roots, moved = roots_mirrored_inside(np.array([1.0]))  # 1 + q^-1: root -1
+    np.testing.assert_array_equal(roots, [-1.0])
+    np.testing.assert_array_equal(moved, [True])
 
 
 def test_a_root_on_the_circle_is_kept_one_hundredth_inside():

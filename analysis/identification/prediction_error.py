@@ -140,8 +140,9 @@ def roots_mirrored_inside(tail) -> tuple[np.ndarray, np.ndarray]:
     """The roots of 1 + c1 q^-1 + ... + cn q^-n, and which lay on or outside the unit circle.
 
     Each root r with |r| >= 1 is replaced by its mirror 1 / conj(r): the polynomial's magnitude
-    response keeps its shape (up to a constant), and a predictor or a model built on it becomes
-    stable. Roots already inside are kept. Returns (complex roots, boolean mask of those moved).
+    response keeps its shape (up to a constant). A root on the circle stays on it, so each caller
+    pulls the mirrored roots inside by a margin of its own. Roots already inside are kept.
+    Returns (complex roots, boolean mask of the roots that were on or outside the circle).
     """
     roots = np.roots(np.concatenate([[1.0], tail])).astype(complex)
     outside = np.abs(roots) >= 1.0
@@ -152,7 +153,7 @@ def roots_mirrored_inside(tail) -> tuple[np.ndarray, np.ndarray]:
 def stable_noise_polynomial(c: np.ndarray) -> np.ndarray:
     """C(q)'s coefficients c1..cn with every root on or outside the unit circle moved inside.
 
-    The root is mirrored inside (``roots_mirrored_inside``: the same noise spectrum up to a
+    Each such root is mirrored inside (``roots_mirrored_inside``: the same noise spectrum up to a
     constant, now with a stable predictor), then kept at least ``1 - _START_ROOT_RADIUS`` inside
     the circle so the predictor's transient decays within a few hundred samples.
     """

@@ -130,8 +130,8 @@ class PaceCheck:
         pace: its next pace (Pa per tick).
         rise: the rises' next sum (Pa).
         fall: the falls' next sum (Pa).
-        jump: this tick's sums show a jump when all of these hold (``if_all``; the one that
-            needs no supervisor state first).
+        jump: this tick's sums show a jump when all of these hold (``if_all``): the excursion
+            first, then ``running`` (the latches, the estimate's band, the pace).
     """
 
     level: Expression
@@ -173,11 +173,11 @@ def pace_check(
     allowance = config.drift_pa + config.per_current_pa_per_a * command_activity_a
     running = logical_and(watched, abs(pace) <= config.still_pace_pa)
     # Written as comparisons of the residual, not of the next sums: each use of an expression is
-    # evaluated again at every tick. The excursions come before ``running`` in each choice: they
-    # are rarely true, and ``running`` reads most of the supervisor's state.
+    # evaluated again at every tick. In the jump and the gains the excursion comes before
+    # ``running``: it is rarely true, and ``running`` reads most of the supervisor's state.
     next_rise = if_then_else(running, symbolic_max(0.0, rise + residual - allowance), 0.0)
     next_fall = if_then_else(running, symbolic_max(0.0, fall - residual - allowance), 0.0)
-    summing = logical_or(residual > allowance - rise, residual < fall - allowance)
+    sum_above_zero = logical_or(residual > allowance - rise, residual < fall - allowance)
     jump = (
         logical_or(
             residual > config.alarm_pa + allowance - rise,
@@ -185,10 +185,10 @@ def pace_check(
         ),
         running,
     )
-    # While a sum runs the tracker coasts. The first tick's level is its reading: the state
+    # While a sum is above zero the tracker coasts. The first tick's level is its reading: the state
     # starts at zero, so a gain of one.
-    level_gain = if_then_else(first, 1.0, if_all([summing, running], 0.0, config.level_gain))
-    pace_gain = if_all([summing, running], 0.0, config.pace_gain)
+    level_gain = if_then_else(first, 1.0, if_all([sum_above_zero, running], 0.0, config.level_gain))
+    pace_gain = if_all([sum_above_zero, running], 0.0, config.pace_gain)
     next_level = level + pace + level_gain * residual
     next_pace = if_then_else(first, 0.0, pace + pace_gain * residual)
     return PaceCheck(next_level, next_pace, next_rise, next_fall, jump)

@@ -324,7 +324,8 @@ def add_safety_supervisor(
     # the air (holding or venting); and from the third tick (the tracker starts at the first
     # reading and has a pace from the second).
     # (One sum of the reasons that hold or vent, and one count of ticks: the same truth as
-    # "not supervising, watching, from the third tick", fewer nodes to evaluate.)
+    # "not supervising, watching, from the third tick", the latched flags being 0 or 1, with
+    # fewer nodes to evaluate.)
     commands_tracked = logical_and(
         _latched_count(latched, [r for r in REASONS if SAFE_ACTIONS[r] != CONTINUE]) < 0.5,
         elapsed >= max(2.0, ticks(config.start_grace_s)),
@@ -392,7 +393,8 @@ def add_safety_supervisor(
     # The held currents follow the commands that pass while nothing was latched and the inlet is
     # not fully open (the tick that first sees a fault still counts: its command was computed a
     # tick before); the average starts at the first such command.
-    # (With nothing latched and finite commands, the inlet passed on is the command.)
+    # (With nothing latched and finite commands, the inlet passed on is the command; the
+    # saturation current is a number, validated with the plant.)
     keep = (
         logical_not(cleared),
         inlet < inlet_saturation_a,

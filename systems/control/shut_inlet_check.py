@@ -138,6 +138,6 @@ def shut_inlet_check(
     opens = logical_or(shut_ticks < 0.5, window_ends)
     return ShutInletCheck(
         shut_ticks=if_all(running, if_then_else(opens, 1.0, shut_ticks + 1), 0.0),
-        start_level=if_all([opens, *running], level, start_level),
+        start_level=if_all([*running, opens], level, start_level),
         not_shut=(window_ends, level > start_level - config.min_fall_pa, *running),
     )

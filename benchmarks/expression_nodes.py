@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 
 from pydrake.common import RandomGenerator
-from pydrake.symbolic import Expression, ExpressionKind, Formula, FormulaKind, Variable
+from pydrake.symbolic import ExpressionKind, Formula, FormulaKind, Variable
 from pydrake.systems.analysis import Simulator
 
 import maskless.systems.named_symbolic_system as named
@@ -125,7 +125,7 @@ def _walk_system(system, context, parts):
     expressions += list(parts.get("dynamics", ()))
     try:
         for expression in expressions:
-            walk(expression if isinstance(expression, Expression) else Expression(expression))
+            walk(named.as_expression(expression))
     except KeyError:
         return "not walked: it reads constants from its parameters"
     return {"nodes": walk.nodes, "variable_reads": walk.reads}

@@ -182,9 +182,9 @@ def add_named_symbolic_system(
     source = None
     if parameters:
         splitter = _ConstantSplitter([variable for variable, _ in parameters])
-        dynamics = [splitter(_as_expression(e)) for e in dynamics]
+        dynamics = [splitter(as_expression(e)) for e in dynamics]
         outputs = [
-            (port_name, [splitter(_as_expression(e)) for e in expressions])
+            (port_name, [splitter(as_expression(e)) for e in expressions])
             for port_name, expressions in outputs
         ]
         source = builder.AddNamedSystem(
@@ -198,9 +198,9 @@ def add_named_symbolic_system(
             time=time,
             state=np.array(list(state), dtype=object),
             input=np.array([v for _, variables in inputs for v in variables], dtype=object),
-            dynamics=np.array([_as_expression(e) for e in dynamics], dtype=object),
+            dynamics=np.array([as_expression(e) for e in dynamics], dtype=object),
             output=np.array(
-                [_as_expression(e) for _, expressions in outputs for e in expressions],
+                [as_expression(e) for _, expressions in outputs for e in expressions],
                 dtype=object,
             ),
             time_period=time_period,
@@ -353,7 +353,7 @@ class _ConstantSplitter:
             # parameter-only terms make one constant.
             fixed = [a for a in arguments if self._of_parameters(a)]
             varying = [self(a) for a in arguments if not self._of_parameters(a)]
-            return function(self._constant(_as_expression(function(*fixed))), *varying)
+            return function(self._constant(as_expression(function(*fixed))), *varying)
         return function(*(self(a) if isinstance(a, Expression) else a for a in arguments))
 
     def _of_parameters(self, value) -> bool:
@@ -368,7 +368,7 @@ class _ConstantSplitter:
         if kind == ExpressionKind.Mul:
             number, *factors = expression.Unapply()[1]
             if number != 1.0:
-                return number * self._constant(_as_expression(expression.Unapply()[0](*factors)))
+                return number * self._constant(as_expression(expression.Unapply()[0](*factors)))
         same_text = self._by_text.setdefault(expression.to_string(), [])
         for known, variable in same_text:
             if known.EqualTo(expression):
@@ -379,6 +379,6 @@ class _ConstantSplitter:
         return Expression(variable)
 
 
-def _as_expression(value) -> Expression:
+def as_expression(value) -> Expression:
     """Variables and numbers as Expressions (Expression's constructor does not take one)."""
     return value if isinstance(value, Expression) else Expression(value)

@@ -15,6 +15,8 @@ from collections.abc import Sequence
 
 from pydrake.symbolic import Expression, Formula, if_then_else
 
+from maskless.systems.named_symbolic_system import as_expression
+
 
 def if_all(conditions: Sequence[Formula], then, otherwise) -> Expression:
     """``then`` when every condition holds, else ``otherwise``; tested first to last.
@@ -26,11 +28,7 @@ def if_all(conditions: Sequence[Formula], then, otherwise) -> Expression:
     """
     if not conditions:
         raise ValueError("if_all: expected at least one condition")
-    result = _as_expression(then)
+    result = as_expression(then)
     for condition in reversed(conditions):
-        result = if_then_else(condition, result, _as_expression(otherwise))
+        result = if_then_else(condition, result, as_expression(otherwise))
     return result
-
-
-def _as_expression(value) -> Expression:
-    return value if isinstance(value, Expression) else Expression(value)

@@ -25,6 +25,7 @@ from maskless.systems.named_symbolic_system import (
     SymbolicSystem,
     add_named_symbolic_system,
     add_symbolic_system,
+    as_expression,
 )
 
 
@@ -74,7 +75,7 @@ def _add_bank(builder: DiagramBuilder, members: Mapping[str, SymbolicSystem]) ->
     time = min(times, key=Variable.get_id) if times else None
 
     def shared_time(system: SymbolicSystem, expression) -> Expression:
-        expression = expression if isinstance(expression, Expression) else Expression(expression)
+        expression = as_expression(expression)
         if time is None or system.time is None or system.time.EqualTo(time):
             return expression
         return expression.Substitute(system.time, Expression(time))

@@ -11,7 +11,8 @@ With --targeted-share F, the record is designed sequentially
 by levels inside each valve's starting-current interval as a Hammerstein fit of the record before
 it finds it (in --rounds parts, each designed from the record up to it), held --targeted-hold-s
 each, approached alternately from below and above (a --coverage-share of them over the rest of
-each curve, from the interval's top to --top-ma); the rest of the record, the held-out part
+each curve, from the interval's top to --top-ma), the other valve meanwhile shut or held at
+--other-valve-ma; the rest of the record, the held-out part
 included, is the same as without it, and the total length the same. F = 0 (the default) is the
 random design alone, bit for bit.
 
@@ -116,6 +117,7 @@ def pneumatic_record(config, args, seed):
             seed,
             args.rounds,
             args.coverage_share,
+            tuple(ma_to_a(np.asarray(args.other_valve_ma))),
         )
         rounds = [a_to_ma(found).tolist() for found in intervals]
     # mA: the model's map is read in the record's units.
@@ -233,6 +235,7 @@ def measure(args) -> dict:
             "rounds": args.rounds,
             "coverage_share": args.coverage_share,
             "targeted_hold_s": args.targeted_hold_s,
+            "other_valve_ma": list(args.other_valve_ma),
         }
     runs = []
     for seed in args.seeds:
@@ -302,6 +305,15 @@ def main() -> None:
         type=float,
         default=0.0,
         help="the share of targeted holds over the rest of each curve, above its start's interval",
+    )
+    parser.add_argument(
+        "--other-valve-ma",
+        type=float,
+        nargs=2,
+        default=(0.0, 0.0),
+        metavar=("INLET", "OUTLET"),
+        help="per valve, the other valve's current during its targeted holds (mA; 0 0: shut, "
+        "the split range; 0 190: the outlet's start sought with the inlet open)",
     )
     parser.add_argument(
         "--targeted-hold-s",

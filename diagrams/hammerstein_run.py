@@ -186,9 +186,15 @@ def format_hammerstein_report(report: dict) -> str:
                 if valve["saturation_current"] <= highest
                 else f"does not saturate up to the record's highest {1e3 * highest:.1f} mA"
             )
+            play = valve.get("play_half_width")
+            source = (
+                f"from {valve['starting_current_from']}, play ±{1e3 * play:.1f} mA; "
+                if play is not None
+                else ""
+            )
             lines.append(
                 f"    {name}: starts at {1e3 * valve['starting_current']:.1f} mA "
-                f"(the record cannot tell apart {1e3 * low:.1f}-{1e3 * high:.1f} mA), "
+                f"({source}the record cannot tell apart {1e3 * low:.1f}-{1e3 * high:.1f} mA), "
                 f"{saturation}, full opening moves the head {1e3 * valve['dc_gain']:.2f} mm"
             )
         lines.append(f"    model file: {model['model_file']}")

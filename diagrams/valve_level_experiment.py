@@ -13,7 +13,10 @@ valve, in turn, at levels inside the interval of starting currents that fit cann
 and from above (a sample at the valve's top current first), so the hysteresis averages out. The
 stretch is taken from the random levels, so fewer of them reach the curve's top; a share of the
 targeted holds can go there instead (``coverage_share``: levels from the interval's top to the
-valve's top current). It reads the record and the datasheet range only.
+valve's top current). A valve whose own effect near its start is below the levels' scatter
+(the outlet, venting a bladder at rest) can be held with the other valve open instead
+(``other_valve_currents_a``): the fit then reads its start from that section of the record
+(``analysis.identification.section_start``). It reads the record and the datasheet range only.
 """
 
 import dataclasses
@@ -39,6 +42,7 @@ def run_sequential_experiment(
     seed: int,
     rounds: int = 1,
     coverage_share: float = 0.0,
+    other_valve_currents_a: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[np.ndarray, np.ndarray, SimulationRun, list[np.ndarray]]:
     """``run_two_valve_experiment`` with samples ``targeted`` designed from the record before them.
 
@@ -61,6 +65,8 @@ def run_sequential_experiment(
         seed: the targeted levels' seed.
         rounds: designs of the stretch, each from the record up to its part.
         coverage_share: the share of targeted holds over the rest of each curve (as there).
+        other_valve_currents_a: per valve, the other valve's current during its targeted holds
+            (as there).
 
     Returns:
         (currents as applied (2, N), fused height (N,), the run, each round's intervals (A)).
@@ -94,6 +100,7 @@ def run_sequential_experiment(
             hold_s,
             seed + round_index,
             coverage_share,
+            other_valve_currents_a,
         )
     applied, fused, run = run_two_valve_experiment(config, currents, sample_period_s)
     for earlier in seen:

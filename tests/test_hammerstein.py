@@ -6,6 +6,8 @@ physics (``equilibrium_state``), is the realistic test, on a shorter record than
 benchmarks/hammerstein.py measures.
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 import scipy.optimize
@@ -114,6 +116,20 @@ def test_the_summary_reports_each_valve_and_the_poles(planted_fit):
         planted_fit[2].starting_current_spread(), PLANTED.maps, strict=True
     ):
         assert true.starting_current - 1.5e-3 < low <= high < true.starting_current + 1.5e-3
+
+
+def test_the_summary_names_where_each_start_came_from(planted_fit):
+    fit = planted_fit[2]
+    joint = fit.summary()["valves"]["inlet"]
+    assert joint["starting_current_from"] == "the joint search" and joint["play_half_width"] is None
+    sectioned = dataclasses.replace(
+        fit, start_intervals=((0.05, 0.07), (0.04, 0.06)), play_half_widths=(np.nan, 0.0025)
+    ).summary()["valves"]
+    assert sectioned["inlet"]["starting_current_from"] == "the settled levels"
+    assert sectioned["inlet"]["play_half_width"] is None
+    assert sectioned["outlet"]["starting_current_from"].startswith("a section")
+    assert sectioned["outlet"]["play_half_width"] == 0.0025
+    assert sectioned["outlet"]["starting_current_spread"] == [0.04, 0.06]
 
 
 def test_a_search_stopped_early_is_named_not_raised():

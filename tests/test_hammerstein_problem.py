@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from maskless.analysis.identification.hammerstein_problem import (
+    HammersteinProblem,
     polynomial_reflections,
     reflection_polynomial,
 )
@@ -29,3 +30,22 @@ def test_an_unstable_polynomial_is_mirrored_inside_before_its_reflections():
     a = np.poly([1.25, 0.5])[1:]
     stable = reflection_polynomial(polynomial_reflections(a))
     np.testing.assert_allclose(np.sort(np.roots(np.concatenate([[1.0], stable]))), [0.5, 0.8])
+
+
+def test_samples_left_uncounted_do_not_move_the_arx_start():
+    # A first-order linear record (pole 0.9) whose middle stretch a plant no model here describes
+    # replaced by an unrelated swing: counted, it pulls the ARX pole; uncounted, the pole is 0.9.
+    rng = np.random.default_rng(0)
+    u = rng.uniform(0.0, 1.0, (3000, 1))
+    y = np.zeros(3000)
+    for k in range(1, 3000):
+        y[k] = 0.9 * y[k - 1] + 0.5 * u[k - 1, 0]
+    y += 1e-3 * rng.standard_normal(3000)
+    y[1000:1600] += 3.0 * np.sin(np.arange(600) / 40.0)
+    counted = np.ones(3000, dtype=bool)
+    counted[1000:1600] = False
+    kept = HammersteinProblem(u, y, 1, 1, 1, linear=True, counted=counted)
+    assert kept.arx_poles()[0] == pytest.approx(0.9, abs=2e-3)
+    assert abs(HammersteinProblem(u, y, 1, 1, 1, linear=True).arx_poles()[0] - 0.9) > 0.02
+    # The criterion counts only those samples.
+    assert kept.residuals(kept.initial_guesses()[0]).size == counted.sum()

@@ -138,6 +138,24 @@ def test_a_coverage_share_puts_every_other_hold_over_the_rest_of_the_curve():
             assert np.all(kind[1:] != kind[:-1])
 
 
+def test_other_valve_currents_hold_the_other_valve_open_and_keep_both_approaches():
+    other = 0.15
+    currents = targeted_level_currents(8000, TS, TOPS, INTERVALS, 6.0, 0, 0.0, (0.0, other))
+    split = _targeted()
+    # The inlet is probed as in the split range, the outlet with the inlet held at 0.15 A.
+    np.testing.assert_array_equal(currents[1], split[1])
+    outlet_holds = split[1] > 0.0
+    np.testing.assert_array_equal(currents[0, outlet_holds], other)
+    inlet_firsts, inlet_levels = _holds(split, 0)
+    inlet_holds = split[0] > 0.0
+    inlet_holds[inlet_firsts] = False
+    np.testing.assert_array_equal(currents[0, inlet_holds], split[0, inlet_holds])
+    # A hold approached from below now starts shut, since the inlet was open before it.
+    from_below = split[0, inlet_firsts] == inlet_levels
+    assert np.all(currents[0, inlet_firsts[from_below]] == 0.0)
+    assert np.all(currents[0, inlet_firsts[~from_below]] == TOPS[0])
+
+
 def test_targeted_levels_are_seeded():
     np.testing.assert_array_equal(_targeted(seed=3), _targeted(seed=3))
     assert not np.array_equal(_targeted(seed=3), _targeted(seed=4))
@@ -152,6 +170,8 @@ def test_targeted_levels_are_seeded():
         ({"top_currents_a": (0.19, 0.0)}, "top_currents_a"),
         ({"hold_s": 0.0}, "hold_s must satisfy"),
         ({"coverage_share": 1.5}, "coverage_share = 1.5"),
+        ({"other_valve_currents_a": (0.185, 0.0)}, "other_valve_currents_a"),
+        ({"other_valve_currents_a": (-0.01, 0.0)}, "other_valve_currents_a"),
     ],
 )
 def test_bad_targeted_arguments_name_the_argument(arguments, message):

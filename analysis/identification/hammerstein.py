@@ -70,6 +70,9 @@ class HammersteinFit:
             past it was never seen, only allowed.
         start_intervals: per valve, the starting current's 95 % profile interval from the
             settled holds (``settled_curve``), when the maps came from them; else empty.
+        play_half_widths: per valve, its play band's half-width where a section of the record
+            (``section_start``: its levels with the other valve held open) gave its starting
+            current, else NaN; empty when the maps did not come from settled holds.
     """
 
     model: HammersteinModel
@@ -81,6 +84,7 @@ class HammersteinFit:
     searches: tuple[tuple[float, tuple[float, ...]], ...] = ()
     highest_currents: tuple[float, ...] = ()
     start_intervals: tuple[tuple[float, float], ...] = ()
+    play_half_widths: tuple[float, ...] = ()
 
     def starting_current_spread(self, tolerance: float = 0.01) -> list[tuple[float, float]]:
         """Per valve, (lowest, highest) starting current the record cannot tell apart.
@@ -100,8 +104,9 @@ class HammersteinFit:
     def summary(self, input_names=("inlet", "outlet")) -> dict:
         """Per valve: its map's ends, spread and static curve; and the poles.
 
-        Each valve's starting current and ``starting_current_spread``, saturation current and
-        the record's highest current, DC gain and the static curve at the map's knots.
+        Each valve's starting current, where it came from and ``starting_current_spread``,
+        saturation current and the record's highest current, DC gain and the static curve at the
+        map's knots; ``play_half_width`` where a section gave the start.
         """
         model = self.model
         gains = model.dc_gains()
@@ -109,8 +114,17 @@ class HammersteinFit:
         valves = {}
         for i, valve_map in enumerate(model.maps):
             name = input_names[i] if i < len(input_names) else f"input_{i}"
+            from_section = bool(self.play_half_widths) and np.isfinite(self.play_half_widths[i])
             valves[name] = {
                 "starting_current": valve_map.starting_current,
+                "starting_current_from": (
+                    "a section: its settled levels with the other valve held open"
+                    if from_section
+                    else "the settled levels"
+                    if self.start_intervals
+                    else "the joint search"
+                ),
+                "play_half_width": self.play_half_widths[i] if from_section else None,
                 "starting_current_spread": list(spread[i]),
                 "highest_current_in_record": self.highest_currents[i],
                 "saturation_current": valve_map.saturation_current,
@@ -168,9 +182,11 @@ def estimate_hammerstein(
             input, or an order, delay or segment count out of range.
     """
     u, y = _checked_record(u, y, order, map_segments, input_delay_samples, sample_period_s)
-    curves, slowest = (None, None) if linear else _settled_curves(u, y, order, input_delay_samples)
+    curves, slowest, counted = (
+        (None, None, None) if linear else _settled_curves(u, y, order, input_delay_samples)
+    )
     problem = HammersteinProblem(
-        u, y, order, map_segments, input_delay_samples, linear, curves, slowest
+        u, y, order, map_segments, input_delay_samples, linear, curves, slowest, counted
     )
     units = {"input_unit": input_unit, "output_unit": output_unit}
     solution, start, failures, ends = None, None, [], []
@@ -218,7 +234,10 @@ def estimate_hammerstein(
         for end in ends
     )
     intervals = () if curves is None else tuple(map(tuple, curves.start_intervals.tolist()))
-    return dataclasses.replace(fit, searches=searches, start_intervals=intervals)
+    play = () if curves is None else tuple(curves.play_half_widths.tolist())
+    return dataclasses.replace(
+        fit, searches=searches, start_intervals=intervals, play_half_widths=play
+    )
 
 
 def estimate_linear_arx(
@@ -235,24 +254,33 @@ def estimate_linear_arx(
 
 
 def _settled_curves(u, y, order, delay):
-    """(the static curves of the settled holds (``settled_curve``), the slowest pole's radius).
+    """(the settled holds' static curves (``settled_curve``), the slowest pole's radius, counted).
 
     A hold has settled ``_SETTLE_TIME_CONSTANTS`` time constants of the slowest pole of the
-    record's ARX model after it began. (None, None) if too few holds settled.
+    record's ARX model after it began. ``counted`` (N,) are the samples the dynamics are fitted
+    on: all but the holds of the sections (``section_start``), each from the sample before it
+    (an approach) to one settling time after it, where no sum of the curves describes the plant;
+    None when all count. (None, None, None) if too few holds settled.
     """
     slowest = float(
         np.max(np.abs(HammersteinProblem(u, y, order, 1, delay, linear=True).arx_poles()))
     )
     if not slowest < 1.0:
-        return None, None
+        return None, None, None
     settle = int(np.ceil(_SETTLE_TIME_CONSTANTS / -np.log(slowest)))
     levels = settled_levels(u, y, settle, max(1, settle // 8))
     if levels.outputs.size < 2 * parameter_count(u.shape[1]):
-        return None, None
+        return None, None, None
     curves = fit_static_curves(levels, MAX_START, MAX_SATURATION)
     if curves is None or np.any(curves.gains() == 0.0):
-        return None, None
-    return curves, slowest
+        return None, None, None
+    if not curves.section_levels.any():
+        return curves, slowest, None
+    counted = np.ones(u.shape[0], dtype=bool)
+    bounds = np.append(levels.hold_first_samples, u.shape[0])
+    for hold in levels.level_holds[curves.section_levels]:
+        counted[max(bounds[hold] - 1, 0) : bounds[hold + 1] + settle] = False
+    return curves, slowest, counted
 
 
 def _fit(problem, theta, start, converged, message, evaluations, sample_period_s, units):

@@ -98,12 +98,17 @@ class HammersteinProblem:
     curve's gain. ``pole_radius`` bounds A(q)'s poles: with the curves fixed, the search otherwise
     puts a pole within 1e-5 of 1 with a zero all but cancelling it, a slow drift no design can
     use; the curves assume the plant settles as the record's ARX model's slowest pole does, so
-    the dynamics get no slower pole.
+    the dynamics get no slower pole. ``counted`` (N,) leaves samples out of the criterion and the
+    ARX start (the simulation still runs through them): stretches no sum of the maps describes.
     """
 
-    def __init__(self, u, y, order, segments, delay, linear, curves=None, pole_radius=None):
+    def __init__(
+        self, u, y, order, segments, delay, linear, curves=None, pole_radius=None, counted=None
+    ):
         """Normalises the record (a checked one: ``hammerstein._checked_record``)."""
         self.order, self.segments, self.delay, self.linear = order, segments, delay, linear
+        # The samples the criterion and the ARX start count (all by default).
+        self.counted = np.ones(y.size, dtype=bool) if counted is None else counted
         self.inputs = u.shape[1]
         self.u_low, self.u_range = u.min(axis=0), np.ptp(u, axis=0)
         self.y_mean, self.y_scale = float(y.mean()), float(np.std(y))
@@ -176,10 +181,10 @@ class HammersteinProblem:
 
     def residuals(self, theta):
         """The simulation's errors (normalised)."""
-        error = self.y - self.simulate(theta)
+        error = (self.y - self.simulate(theta))[self.counted]
         if not np.all(np.isfinite(error)):
             # Finite and large: the search turns back instead of stopping on a NaN.
-            return np.full(self.y.size, 1e3)
+            return np.full(error.size, 1e3)
         return error
 
     def cost(self, theta) -> float:
@@ -246,9 +251,15 @@ class HammersteinProblem:
                     regressors.append(basis[lag - shift : lag - shift + rows])
             regressors.append(np.ones((rows, 1)))
             matrix = np.column_stack(regressors)
+            target = self.y[lag:]
+            if not self.counted.all():
+                # A row counts when its output and every lagged sample it reads are counted.
+                window = np.lib.stride_tricks.sliding_window_view(self.counted, lag + 1)
+                rows_counted = window.all(axis=1)
+                matrix, target = matrix[rows_counted], target[rows_counted]
             # The normal equations: a few dozen columns, and a Gram matrix is one product where a
             # tall QR or SVD is many (and slow when BLAS threads compete for cores).
-            solution, *_ = np.linalg.lstsq(matrix.T @ matrix, matrix.T @ self.y[lag:], rcond=None)
+            solution, *_ = np.linalg.lstsq(matrix.T @ matrix, matrix.T @ target, rcond=None)
             reflections = polynomial_reflections(solution[:n] / self.pole_scales)
         theta = np.zeros(self.size)
         theta[:n] = np.arctanh(reflections)
@@ -279,7 +290,7 @@ class HammersteinProblem:
         if not fallback:
             # y_op: the output the model leaves with no input at all, fitted afresh for the
             # simulated (not one-step) criterion.
-            theta[-1] = float(np.mean(self.y - self.simulate(theta)))
+            theta[-1] = float(np.mean((self.y - self.simulate(theta))[self.counted]))
         return theta
 
     @staticmethod

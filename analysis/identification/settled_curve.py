@@ -31,14 +31,19 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.optimize
 
+from maskless.analysis.identification.section_start import (
+    CHI2_95,
+    SectionStart,
+    find_sections,
+    section_start,
+)
+
 # The grid's step for the starting and saturation currents, as a fraction of each input's range,
 # and the step of the refinement around the coarse grid's best point.
 _GRID_STEP = 1.0 / 80.0
 _REFINED_STEP = _GRID_STEP / 5.0
 # Passes over the valves, each fitted with the others' curves held.
 _SWEEPS = 3
-# The 95 % point of chi-squared with one degree of freedom: the profile interval's rise.
-_CHI2_95 = 3.841
 # Knots of the piecewise-linear map a curve is stored as (``ValveMap``): a quadratic sampled at
 # 16 pieces is within 1/1024 of its full value of the quadratic.
 MAP_PIECES = 16
@@ -51,11 +56,20 @@ def parameter_count(inputs: int) -> int:
 
 @dataclass(frozen=True)
 class SettledLevels:
-    """The holds that settled: (M, inputs) currents, (M,) mean outputs, (M,) samples averaged."""
+    """The holds that settled: (M, inputs) currents, (M,) mean outputs, (M,) samples averaged.
+
+    ``hold_currents`` (H, inputs) are the currents of every hold of the record in turn, settled
+    or not, ``hold_first_samples`` (H,) where each begins, and ``level_holds`` (M,) the hold each
+    level ends: a valve's play makes where its spool rests depend on the currents before
+    (``section_start``). Left out, the levels are taken as the record's only holds, in order.
+    """
 
     currents: np.ndarray
     outputs: np.ndarray
     samples: np.ndarray
+    hold_currents: np.ndarray | None = None
+    level_holds: np.ndarray | None = None
+    hold_first_samples: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -65,7 +79,9 @@ class StaticCurves:
     Currents in the units of the levels they were fitted to; ``increments`` (inputs, 2) are the
     Bernstein coefficients' non-negative steps times the input's sign, so each curve's full value
     (its DC gain) is their sum; ``start_intervals`` (inputs, 2) the starting currents' 95 %
-    profile intervals.
+    profile intervals; ``play_half_widths`` (inputs,) the half-width of each valve's play band
+    where a section found its start (``section_start``), else NaN; ``section_levels`` (M,) which
+    of the settled levels were sections, left out of the curves' fit.
     """
 
     starts: np.ndarray
@@ -74,6 +90,8 @@ class StaticCurves:
     rest_output: float
     residual_rms: float
     start_intervals: np.ndarray
+    play_half_widths: np.ndarray
+    section_levels: np.ndarray
 
     def curve(self, index: int, currents) -> np.ndarray:
         """The steady output change of input ``index`` from shut, at ``currents``."""
@@ -101,11 +119,14 @@ def settled_levels(u, y, settle_samples: int, min_tail_samples: int) -> SettledL
     starts = np.concatenate([[0], change])
     ends = np.concatenate([change, [u.shape[0]]])
     tail = max(1, min_tail_samples)
-    kept = [(a, b) for a, b in zip(starts, ends, strict=True) if b - a - settle_samples >= tail]
+    kept = np.flatnonzero(ends - starts - settle_samples >= tail)
     return SettledLevels(
-        currents=np.array([u[a] for a, _ in kept]).reshape(len(kept), u.shape[1]),
-        outputs=np.array([y[a + settle_samples : b].mean() for a, b in kept]),
-        samples=np.array([b - a - settle_samples for a, b in kept], dtype=int),
+        currents=u[starts[kept]].reshape(kept.size, u.shape[1]),
+        outputs=np.array([y[starts[k] + settle_samples : ends[k]].mean() for k in kept]),
+        samples=np.array([ends[k] - starts[k] - settle_samples for k in kept], dtype=int),
+        hold_currents=u[starts],
+        level_holds=kept,
+        hold_first_samples=starts,
     )
 
 
@@ -122,6 +143,11 @@ def fit_static_curves(levels: SettledLevels, max_start: float, max_saturation: f
     if any(np.unique(u[:, i]).size < 2 for i in range(inputs)):
         return None
     low, span = u.min(axis=0), np.ptp(u, axis=0)
+    sections = _section_starts(levels, low, span)
+    in_sections = np.zeros(y.size, dtype=bool)
+    for found in sections.values():
+        in_sections |= found.levels
+    u, y = u[~in_sections], y[~in_sections]
     x = (u - low) / span
     # Start each valve linear over its whole range; the sweeps move its ends.
     ends = [(0.0, 1.0)] * inputs
@@ -129,12 +155,19 @@ def fit_static_curves(levels: SettledLevels, max_start: float, max_saturation: f
     for _ in range(_SWEEPS):
         for i in range(inputs):
             held = [_basis(x[:, j], *ends[j]) * signs[j] for j in range(inputs) if j != i]
-            ends[i], signs[i] = _profile(x[:, i], y, held, max_start, max_saturation)
+            fixed = sections[i].start if i in sections else None
+            ends[i], signs[i] = _profile(x[:, i], y, held, max_start, max_saturation, fixed)
     columns = [_basis(x[:, i], *ends[i]) * signs[i] for i in range(inputs)]
     sse, coefficients = _nonnegative_fit(columns, y)
     variance = sse / max(1, y.size - parameter_count(inputs))
     intervals = [
-        _start_interval(x[:, i], y, columns[:i] + columns[i + 1 :], max_start, max_saturation)
+        sections[i].interval
+        if i in sections
+        else _within(
+            _start_interval(x[:, i], y, columns[:i] + columns[i + 1 :], max_start, max_saturation),
+            sse + CHI2_95 * variance,
+            ends[i][0],
+        )
         for i in range(inputs)
     ]
     increments = np.array(
@@ -149,13 +182,42 @@ def fit_static_curves(levels: SettledLevels, max_start: float, max_saturation: f
         rest_output=float(coefficients[0] - coefficients[-1]),
         residual_rms=float(np.sqrt(sse / y.size)),
         start_intervals=np.array(
+            [low[i] + span[i] * np.asarray(intervals[i]) for i in range(inputs)]
+        ),
+        play_half_widths=np.array(
             [
-                low[i]
-                + span[i] * np.asarray(_within(intervals[i], sse + _CHI2_95 * variance, ends[i][0]))
+                span[i] * sections[i].play_half_width if i in sections else np.nan
                 for i in range(inputs)
             ]
         ),
+        section_levels=in_sections,
     )
+
+
+def _section_starts(levels: SettledLevels, low, span) -> dict[int, SectionStart]:
+    """Per valve with a section (``section_start``), its start, as fractions of its range.
+
+    None where the levels outside the sections would leave some valve fewer than two distinct
+    currents or the curves fewer than twice their parameters: the sections then stay in the fit.
+    """
+    masks = find_sections(levels.currents)
+    if not masks:
+        return {}
+    outside = ~np.any(list(masks.values()), axis=0)
+    rest = levels.currents[outside]
+    if rest.shape[0] < 2 * parameter_count(rest.shape[1]) or any(
+        np.unique(rest[:, i]).size < 2 for i in range(rest.shape[1])
+    ):
+        return {}
+    holds, level_holds = levels.hold_currents, levels.level_holds
+    if holds is None:
+        holds, level_holds = levels.currents, np.arange(levels.outputs.size)
+    return {
+        valve: section_start(
+            (holds[:, valve] - low[valve]) / span[valve], level_holds, levels.outputs, mask
+        )
+        for valve, mask in masks.items()
+    }
 
 
 def _start_interval(x, y, held, max_start, max_saturation):
@@ -179,19 +241,20 @@ def _within(profile, threshold, best_start):
     return float(max(kept.min(), 0.0)), float(kept.max())
 
 
-def _profile(x, y, held, max_start, max_saturation):
-    """((start, saturation), sign) of one input's curve, by the grid and its refinement."""
-    coarse = [
-        (start, saturation)
-        for start in _grid_starts(max_start)
-        for saturation in _grid_saturations(start, max_saturation)
-    ]
+def _profile(x, y, held, max_start, max_saturation, fixed_start=None):
+    """((start, saturation), sign) of one input's curve, by the grid and its refinement.
+
+    With ``fixed_start`` (its section's, ``section_start``) only the saturation is searched.
+    """
+    starts = _grid_starts(max_start) if fixed_start is None else [fixed_start]
+    coarse = [(start, c) for start in starts for c in _grid_saturations(start, max_saturation)]
     best = _best_of(x, y, held, coarse)
     offsets = np.arange(-_GRID_STEP, _GRID_STEP + 1e-12, _REFINED_STEP)
     (start, saturation), _ = best
+    fine_starts = np.clip(start + offsets, 0.0, max_start) if fixed_start is None else [start]
     fine = [
         (s, c)
-        for s in np.clip(start + offsets, 0.0, max_start)
+        for s in fine_starts
         for c in np.clip(saturation + offsets, 0.0, max_saturation)
         if c >= s + _GRID_STEP
     ]

@@ -116,18 +116,20 @@ def targeted_level_currents(
     hold_s: float,
     seed: int,
     coverage_share: float = 0.0,
+    other_valve_currents_a: tuple[float, float] = (0.0, 0.0),
 ) -> np.ndarray:
     """(2, samples) currents (A): each valve in turn held inside its starting current's interval.
 
-    The inlet and the outlet take turns (the other shut, as in ``split_range``), each hold
-    ``hold_s`` long at a level drawn stratified over its valve's interval (``_stratified``);
-    with ``coverage_share``, that share of each valve's holds (spread evenly among the others)
-    is drawn stratified over the rest of its curve instead, from the interval's top to the
-    valve's top current, so a record whose random part is cut short still settles there.
-    Within each of those two kinds, a valve's holds alternate between approached from below (it
-    was shut during the other's hold) and from above (the hold's first sample at the valve's top
-    current, which pushes the spool past any play band the datasheet allows, then the level), so
-    half its levels rest at each edge of the band.
+    The inlet and the outlet take turns (the other shut, as in ``split_range``, or held at
+    ``other_valve_currents_a``), each hold ``hold_s`` long at a level drawn stratified over its
+    valve's interval (``_stratified``); with ``coverage_share``, that share of each valve's holds
+    (spread evenly among the others) is drawn stratified over the rest of its curve instead, from
+    the interval's top to the valve's top current, so a record whose random part is cut short
+    still settles there. Within each of those two kinds, a valve's holds alternate between
+    approached from below (it was shut during the other's hold, or its hold's first sample shuts
+    it) and from above (the hold's first sample at the valve's top current, which pushes the
+    spool past any play band the datasheet allows, then the level), so half its levels rest at
+    each edge of the band.
 
     Args:
         samples: the stretch's length.
@@ -139,6 +141,12 @@ def targeted_level_currents(
         seed: the random generator's seed (same seed, same signal).
         coverage_share: the share of holds above the interval, 0 to 1 (0: none, bit for bit
             the design without it).
+        other_valve_currents_a: per valve, the current (A) the other valve holds during its
+            holds inside the interval (0: shut, the split range). A valve whose own effect is
+            small near its start (the outlet, venting a bladder at low pressure) shows that
+            start several times more sharply on top of the other valve held open: the same
+            opening then passes more air. Those levels form a section of the plant's steady
+            output at one current of the other valve (``settled_curve``).
 
     Raises:
         ValueError: naming the argument out of range.
@@ -148,6 +156,12 @@ def targeted_level_currents(
     if not 0.0 <= coverage_share <= 1.0:
         raise ValueError(f"coverage_share = {coverage_share!r}: expected 0 to 1")
     tops, intervals = _checked_ranges(top_currents_a, start_intervals_a)
+    others = np.asarray(other_valve_currents_a, dtype=float)
+    if others.shape != (2,) or not np.all((others >= 0.0) & (others <= tops[::-1])):
+        raise ValueError(
+            f"other_valve_currents_a = {other_valve_currents_a}: expected per valve a current "
+            "from 0 to the other valve's top current"
+        )
     # At least two samples: the approach from above and the level.
     hold = max(hold_samples((hold_s, hold_s), sample_period_s)[0], 2)
     rng = np.random.default_rng(seed)
@@ -163,14 +177,23 @@ def targeted_level_currents(
     if covering.any():
         for valve, (high, top) in enumerate(zip(intervals[:, 1], tops, strict=True)):
             levels[valve, covering] = high + (top - high) * _stratified(rng, int(covering.sum()))
-    currents = np.zeros((2, 2 * per_valve * hold))
-    for k in range(per_valve):
+    return _turns(levels, covering, from_above, tops, others, hold)[:, :samples]
+
+
+def _turns(levels, covering, from_above, tops, others, hold) -> np.ndarray:
+    """(2, 2 * holds * hold) the valves' holds in turn, each approached as ``from_above`` says."""
+    currents = np.zeros((2, 2 * levels.shape[1] * hold))
+    for k in range(levels.shape[1]):
         for valve in (0, 1):
             begin = (2 * k + valve) * hold
             currents[valve, begin : begin + hold] = levels[valve, k]
+            if not covering[k]:
+                currents[1 - valve, begin : begin + hold] = others[valve]
             if from_above[k]:
                 currents[valve, begin] = tops[valve]
-    return currents[:, :samples]
+            elif others[1 - valve] > 0.0:  # held open during the other's hold: shut it first
+                currents[valve, begin] = 0.0
+    return currents
 
 
 def _checked_ranges(top_currents_a, start_intervals_a) -> tuple[np.ndarray, np.ndarray]:

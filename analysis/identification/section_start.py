@@ -1,0 +1,141 @@
+"""A valve's starting current from a section: its settled levels with the other valve held open.
+
+Why a section: a bladder at rest vents so little air through an outlet just past its start that
+the outlet's settled levels alone place that start no closer than 10-25 mA (the plant's outlet
+lifts the head 0.008 mm per mA there, against some 0.05 mm of scatter between settled levels).
+With the inlet held open the same opening passes far more air, and its first milliamperes move
+the head ten times as far. A sum of per-valve curves does not describe those levels (the flows
+then balance at another pressure), so ``settled_curve`` keeps them out of the curves' fit and
+reads each valve's start from its section alone, here:
+
+- a section is the settled levels at which the other valves hold one and the same current, not
+  all of them shut, with at least ``MIN_SECTION_LEVELS`` distinct currents of this valve: only a
+  designed record has one (``valve_level_design.targeted_level_currents`` with
+  ``other_valve_currents_a``), continuous random levels never repeat a current;
+- near its start the output is a hinge, flat below it and straight above it:
+  y = a + b max(0, p - s), a and b (either sign) by least squares at each start s of a grid;
+- p is where the valve's spool rests, not its coil current: a proportional valve has play (its
+  datasheet allows hysteresis of up to 10 % of the range, a half-width up to 5 %), so after a
+  rise the spool rests at the lower edge of the band round the coil current, after a fall at its
+  upper edge. The play operator p_k = min(max(p_(k-1), u_k - w), u_k + w), run over every hold of
+  the record in turn, gives it; the half-width w is profiled over a grid with s. Unmodelled, the
+  play scatters a section's levels by 2 w times its slope, more than the noise on the outlet;
+- what the section cannot tell apart is reported as in ``settled_curve``: the starts whose
+  profile (the lowest over w) is within chi2(1, 0.95) = 3.84 residual variances of the best. A
+  section approached from one side only cannot tell a start from a play band's shift of it, and
+  its interval is then as wide as the widest play: levels approached alternately from shut and
+  from the top (``targeted_level_currents``) see both edges and separate the two.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Distinct currents of a valve that make a section: a hinge and a play width (4 parameters) with
+# as many residual degrees of freedom left (convention).
+MIN_SECTION_LEVELS = 6
+# The play's half-width grid, as fractions of the valve's range: up to the datasheet's 10 %
+# hysteresis (a half-width of 5 %), in steps of a quarter of a percent.
+_MAX_HALF_WIDTH = 0.05
+_HALF_WIDTH_STEP = 0.0025
+# The starts' grid step, as a fraction of the range (``settled_curve``'s refined step).
+_START_STEP = 1.0 / 400.0
+# The 95 % point of chi-squared with one degree of freedom: a profile interval's rise (here and
+# in ``settled_curve``).
+CHI2_95 = 3.841
+
+
+@dataclass(frozen=True)
+class SectionStart:
+    """One valve's start from its section, in the fractions of its range the fit works in.
+
+    Attributes:
+        start: the best starting current.
+        interval: (lowest, highest) start within the profile's 95 % rise.
+        play_half_width: the play band's half-width at the best fit.
+        levels: (M,) which of the settled levels form the section.
+    """
+
+    start: float
+    interval: tuple[float, float]
+    play_half_width: float
+    levels: np.ndarray
+
+
+def play_operator(currents: np.ndarray, half_width: float) -> np.ndarray:
+    """Where a spool with play of ``half_width`` rests after each of ``currents`` in turn.
+
+    It starts at the first current (the centre of its band) and moves only as far as the coil
+    current leaving the band pushes it.
+    """
+    spool = np.empty(currents.size)
+    position = currents[0]
+    for k, current in enumerate(currents):
+        position = min(max(position, current - half_width), current + half_width)
+        spool[k] = position
+    return spool
+
+
+def find_sections(currents: np.ndarray) -> dict[int, np.ndarray]:
+    """Per valve with a section (see the module docstring), the mask of its levels.
+
+    Args:
+        currents: (M, inputs) each settled level's currents.
+    """
+    found = {}
+    for valve in range(currents.shape[1]):
+        others = np.delete(currents, valve, axis=1)
+        open_rows = np.any(others != 0.0, axis=1)
+        keys, group = np.unique(others[open_rows], axis=0, return_inverse=True)
+        best = None
+        for index in range(keys.shape[0]):
+            mask = np.zeros(currents.shape[0], dtype=bool)
+            mask[np.flatnonzero(open_rows)[group.ravel() == index]] = True
+            distinct = np.unique(currents[mask, valve]).size
+            if distinct >= MIN_SECTION_LEVELS and (best is None or distinct > best[0]):
+                best = (distinct, mask)
+        if best is not None:
+            found[valve] = best[1]
+    return found
+
+
+def section_start(
+    hold_currents: np.ndarray, level_holds: np.ndarray, outputs: np.ndarray, mask: np.ndarray
+) -> SectionStart:
+    """The valve's start from the levels in ``mask`` (see the module docstring).
+
+    Args:
+        hold_currents: (H,) the valve's current over every hold of the record, in order, as
+            fractions of its range.
+        level_holds: (M,) the hold each settled level is the end of.
+        outputs: (M,) the settled levels' outputs.
+        mask: (M,) the section's levels.
+    """
+    y = outputs[mask] - outputs[mask].mean()
+    half_widths = np.arange(0.0, _MAX_HALF_WIDTH + 1e-12, _HALF_WIDTH_STEP)
+    lowest = hold_currents[level_holds[mask]].min()
+    starts = np.arange(
+        lowest - _MAX_HALF_WIDTH, hold_currents[level_holds[mask]].max() + 1e-12, _START_STEP
+    )
+    # (half-widths, starts) residual sum of squares of the best hinge.
+    sse = np.empty((half_widths.size, starts.size))
+    for row, half_width in enumerate(half_widths):
+        spool = play_operator(hold_currents, half_width)[level_holds[mask]]
+        hinge = np.maximum(spool[:, None] - starts[None, :], 0.0)
+        hinge -= hinge.mean(axis=0)
+        spread = np.sum(hinge**2, axis=0)
+        along = y @ hinge
+        explained = np.divide(along**2, spread, out=np.zeros_like(spread), where=spread > 0)
+        sse[row] = y @ y - explained
+    # Strictly lowest: ties go to the earliest point (the narrowest play, the lowest start).
+    row, column = np.unravel_index(np.argmin(sse), sse.shape)
+    profile = sse.min(axis=0)
+    variance = sse[row, column] / max(1, y.size - 4)
+    within = starts[profile <= sse[row, column] + CHI2_95 * variance]
+    # The profile is known at the grid's points only: their neighbours are in the interval.
+    return SectionStart(
+        start=float(starts[column]),
+        interval=(float(within.min() - _START_STEP), float(within.max() + _START_STEP)),
+        play_half_width=float(half_widths[row]),
+        levels=mask,
+    )

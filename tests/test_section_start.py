@@ -1,0 +1,124 @@
+"""A valve's start from a section of settled levels, through its play band.
+
+References: the play operator's closed-form walk on a planted sequence, and planted hinges (a
+start, a slope, a play half-width) seen through that operator with noise.
+"""
+
+import numpy as np
+import pytest
+
+from maskless.analysis.identification.section_start import (
+    MIN_SECTION_LEVELS,
+    find_sections,
+    play_operator,
+    section_start,
+)
+from maskless.analysis.identification.settled_curve import SettledLevels, fit_static_curves
+
+START, SLOPE, HALF_WIDTH = 0.35, -2.0, 0.02
+
+
+def test_the_play_operator_moves_the_spool_only_once_the_coil_leaves_its_band():
+    currents = np.array([0.5, 0.6, 0.58, 0.4, 0.43, 0.46, 0.5])
+    # Centre first; a rise leaves it w below; a step back inside the band moves nothing; a fall
+    # leaves it w above; rising again it waits until the coil is 2 w above where it rests.
+    expected = [0.5, 0.55, 0.55, 0.45, 0.45, 0.45, 0.45 + (0.5 - 0.45) - 0.05]
+    np.testing.assert_allclose(play_operator(currents, 0.05), expected)
+    np.testing.assert_array_equal(play_operator(currents, 0.0), currents)
+
+
+def _hinge_record(seed, levels=12, noise=0.01):
+    """(hold currents, level holds, outputs): levels approached alternately from shut and top."""
+    rng = np.random.default_rng(seed)
+    targets = START + rng.uniform(-0.1, 0.1, levels)
+    approaches = np.where(np.arange(levels) % 2 == 0, 0.0, 1.0)
+    holds = np.column_stack([approaches, targets]).ravel()
+    spool = play_operator(holds, HALF_WIDTH)[1::2]
+    outputs = 3.0 + SLOPE * np.maximum(spool - START, 0.0) + noise * rng.standard_normal(levels)
+    return holds, np.arange(1, 2 * levels, 2), outputs
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_a_planted_hinge_seen_through_play_is_recovered(seed):
+    holds, level_holds, outputs = _hinge_record(seed)
+    found = section_start(holds, level_holds, outputs, np.ones(outputs.size, dtype=bool))
+    # The noise (0.01) moves the hinge by about 0.01 / |slope| = 0.005 of the range.
+    assert found.start == pytest.approx(START, abs=0.015)
+    assert found.interval[0] <= START <= found.interval[1]
+    assert found.play_half_width == pytest.approx(HALF_WIDTH, abs=0.01)
+
+
+def test_without_the_play_the_same_levels_scatter_and_place_the_start_worse():
+    errors = {"play": [], "coil": []}
+    for seed in range(20):
+        holds, level_holds, outputs = _hinge_record(seed)
+        found = section_start(holds, level_holds, outputs, np.ones(outputs.size, dtype=bool))
+        errors["play"].append(abs(found.start - START))
+        # The coil currents as if the spool followed them: a straight hinge fit on them.
+        coil = holds[level_holds]
+        starts = np.arange(0.2, 0.5, 0.0025)
+        sse = [
+            np.linalg.lstsq(
+                np.column_stack([np.ones(coil.size), np.maximum(coil - s, 0.0)]), outputs, None
+            )[1].sum()
+            for s in starts
+        ]
+        errors["coil"].append(abs(starts[int(np.argmin(sse))] - START))
+    assert np.median(errors["play"]) < 0.5 * np.median(errors["coil"])
+
+
+def test_a_section_is_a_valve_at_many_currents_with_the_other_held_open_at_one():
+    outlet = np.linspace(0.1, 0.5, MIN_SECTION_LEVELS)
+    currents = np.vstack(
+        [
+            np.column_stack([np.linspace(0.0, 1.0, 30), np.zeros(30)]),  # the inlet alone
+            np.column_stack([np.zeros(30), np.linspace(0.0, 1.0, 30)]),  # the outlet alone
+            np.column_stack([np.full(outlet.size, 0.9), outlet]),  # the outlet, inlet open
+            np.column_stack([np.full(3, 0.7), outlet[:3]]),  # too few at another inlet current
+        ]
+    )
+    sections = find_sections(currents)
+    assert list(sections) == [1]
+    np.testing.assert_array_equal(np.flatnonzero(sections[1]), 60 + np.arange(outlet.size))
+    # One fewer distinct current is no section.
+    assert find_sections(currents[np.r_[0:60, 61 : currents.shape[0]]]) == {}
+
+
+def _two_valve_levels(seed, section):
+    """Split-range levels of a gentle outlet, with or without a section on the inlet held open.
+
+    The section's levels are approached alternately from the outlet shut and fully open.
+    """
+    rng = np.random.default_rng(seed)
+    alone = np.linspace(0.0, 1.0, 21)
+    levels = [np.column_stack([alone, np.zeros(21)]), np.column_stack([np.zeros(21), alone])]
+    holds = list(np.vstack(levels))
+    if section:
+        for k, outlet in enumerate(START + np.linspace(-0.1, 0.1, 12)):
+            holds += [(1.0, float(k % 2)), (1.0, outlet)]
+        levels.append(np.array(holds[42 + 1 :: 2]))
+    currents = np.vstack(levels)
+    holds = np.array(holds)
+    level_holds = np.r_[np.arange(42), np.arange(43, holds.shape[0], 2)]
+    spool = play_operator(holds[:, 1], HALF_WIDTH)[level_holds]
+    # The split-range outlet lowers the output gently; with the inlet open, steeply.
+    gentle = currents[:, 0] == 0.0
+    outputs = 2.0 * currents[:, 0] ** 2 + np.where(gentle, -0.05, SLOPE) * np.maximum(
+        spool - START, 0.0
+    )
+    noisy = outputs + 0.01 * rng.standard_normal(outputs.size)
+    return SettledLevels(currents, noisy, np.ones(noisy.size), holds, level_holds)
+
+
+def test_a_section_places_a_gentle_valves_start_that_its_own_levels_cannot():
+    with_section, alone = [], []
+    for seed in range(4):
+        curves = fit_static_curves(_two_valve_levels(seed, True), 0.6, 1.2)
+        with_section.append(abs(curves.starts[1] - START))
+        assert curves.start_intervals[1][0] <= START <= curves.start_intervals[1][1]
+        assert np.isfinite(curves.play_half_widths[1]) and np.isnan(curves.play_half_widths[0])
+        alone.append(
+            abs(fit_static_curves(_two_valve_levels(seed, False), 0.6, 1.2).starts[1] - START)
+        )
+    assert max(with_section) < 0.01
+    assert np.median(alone) > 2 * max(with_section)

@@ -103,7 +103,14 @@ def pneumatic_record(config, args, seed):
         first = round((1.0 - args.targeted_share) * split)
 
         def start_intervals_a(u_a, y):
-            fit = estimate_hammerstein(u_a, y, args.order, period_s, input_delay_samples=args.delay)
+            fit = estimate_hammerstein(
+                u_a,
+                y,
+                args.order,
+                period_s,
+                input_delay_samples=args.delay,
+                read_sections=any(args.other_valve_ma),
+            )
             return fit.starting_current_spread()
 
         applied, height_m, _, intervals = run_sequential_experiment(
@@ -179,6 +186,8 @@ def measure_record(u, y, period_s, parameters, args) -> dict:
         input_delay_samples=args.delay,
         input_unit="mA",
         output_unit="m",
+        # A designed record's sections (--other-valve-ma) are read; a random one has none.
+        read_sections=any(args.other_valve_ma),
     )
     fit_s = time.perf_counter() - started
     hammerstein_fit = fit_percent(y_val, fit.model.simulate(u_val))

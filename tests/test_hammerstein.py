@@ -123,7 +123,7 @@ def test_the_summary_names_where_each_start_came_from(planted_fit):
     joint = fit.summary()["valves"]["inlet"]
     assert joint["starting_current_from"] == "the joint search" and joint["play_half_width"] is None
     sectioned = dataclasses.replace(
-        fit, start_intervals=((0.05, 0.07), (0.04, 0.06)), play_half_widths=(np.nan, 0.0025)
+        fit, start_intervals=((0.05, 0.07), (0.04, 0.06)), play_half_widths=(None, 0.0025)
     ).summary()["valves"]
     assert sectioned["inlet"]["starting_current_from"] == "the settled levels"
     assert sectioned["inlet"]["play_half_width"] is None

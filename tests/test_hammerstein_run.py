@@ -7,6 +7,7 @@ import pytest
 
 from maskless.analysis.identification.model_file import load_identified_model
 from maskless.diagrams.cli import main
+from maskless.diagrams.hammerstein_run import format_hammerstein_report
 from maskless.systems.hammerstein_model import HammersteinModel
 
 
@@ -86,3 +87,37 @@ def test_identify_hammerstein_reads_the_fields_it_is_given(recording, tmp_path, 
     csv.write_text("1\n2\n")
     assert main([*argv, "--output", str(csv), "--out", str(tmp_path / "three")]) != 0
     assert f"--output {csv}: --method hammerstein reads" in capsys.readouterr().err
+
+
+def test_the_report_says_where_a_start_came_from_and_the_play_it_found():
+    valve = {
+        "starting_current_spread": [0.058, 0.062],
+        "highest_current_in_record": 0.19,
+        "saturation_current": 0.165,
+        "starting_current": 0.06,
+        "dc_gain": -0.0019,
+    }
+    sectioned = {
+        **valve,
+        "starting_current_from": "a section: its settled levels with the other valve held open",
+        "play_half_width": 0.0026,
+    }
+    report = {
+        "recording": "run.mcap",
+        "plot": "hammerstein.png",
+        "models": [
+            {
+                "order": 2,
+                "validation_simulation_fit_percent": 80.0,
+                "linear_validation_simulation_fit_percent": 50.0,
+                "verdict": "better than linear",
+                "valves": {"inlet": valve, "outlet": sectioned},
+                "model_file": "model.yaml",
+            }
+        ],
+    }
+    inlet, outlet = format_hammerstein_report(report).splitlines()[2:4]
+    assert "play" not in inlet and "inlet: starts at 60.0 mA (the record cannot" in inlet
+    assert (
+        "from a section: its settled levels with the other valve held open, play ±2.6 mA" in outlet
+    )

@@ -19,10 +19,10 @@ START, SLOPE, HALF_WIDTH = 0.35, -2.0, 0.02
 
 
 def test_the_play_operator_moves_the_spool_only_once_the_coil_leaves_its_band():
-    currents = np.array([0.5, 0.6, 0.58, 0.4, 0.43, 0.46, 0.5])
+    currents = np.array([0.5, 0.6, 0.58, 0.4, 0.43, 0.46, 0.5, 0.56])
     # Centre first; a rise leaves it w below; a step back inside the band moves nothing; a fall
-    # leaves it w above; rising again it waits until the coil is 2 w above where it rests.
-    expected = [0.5, 0.55, 0.55, 0.45, 0.45, 0.45, 0.45 + (0.5 - 0.45) - 0.05]
+    # leaves it w above; rising again it stays until the coil is w above it, then follows.
+    expected = [0.5, 0.55, 0.55, 0.45, 0.45, 0.45, 0.45, 0.51]
     np.testing.assert_allclose(play_operator(currents, 0.05), expected)
     np.testing.assert_array_equal(play_operator(currents, 0.0), currents)
 
@@ -41,7 +41,7 @@ def _hinge_record(seed, levels=12, noise=0.01):
 @pytest.mark.parametrize("seed", range(5))
 def test_a_planted_hinge_seen_through_play_is_recovered(seed):
     holds, level_holds, outputs = _hinge_record(seed)
-    found = section_start(holds, level_holds, outputs, np.ones(outputs.size, dtype=bool))
+    found = section_start(holds, level_holds, outputs, np.ones(outputs.size, dtype=bool), 0.95)
     # The noise (0.01) moves the hinge by about 0.01 / |slope| = 0.005 of the range.
     assert found.start == pytest.approx(START, abs=0.015)
     assert found.interval[0] <= START <= found.interval[1]
@@ -52,7 +52,7 @@ def test_without_the_play_the_same_levels_scatter_and_place_the_start_worse():
     errors = {"play": [], "coil": []}
     for seed in range(20):
         holds, level_holds, outputs = _hinge_record(seed)
-        found = section_start(holds, level_holds, outputs, np.ones(outputs.size, dtype=bool))
+        found = section_start(holds, level_holds, outputs, np.ones(outputs.size, dtype=bool), 0.95)
         errors["play"].append(abs(found.start - START))
         # The coil currents as if the spool followed them: a straight hinge fit on them.
         coil = holds[level_holds]
@@ -65,6 +65,21 @@ def test_without_the_play_the_same_levels_scatter_and_place_the_start_worse():
         ]
         errors["coil"].append(abs(starts[int(np.argmin(sse))] - START))
     assert np.median(errors["play"]) < 0.5 * np.median(errors["coil"])
+
+
+def test_a_section_that_never_reaches_past_the_start_leaves_it_unbounded_above():
+    holds, level_holds, outputs = _hinge_record(0)
+    below = holds[level_holds] < START - 0.02
+    found = section_start(holds, level_holds, outputs, below, 0.95)
+    # Flat over every level: the data say only that the start is at or above the highest.
+    assert found.interval[1] == 0.95 and found.interval[0] <= holds[level_holds][below].max()
+
+
+def test_an_exact_hinge_gives_a_point_interval_not_an_error():
+    holds, level_holds, outputs = _hinge_record(1, noise=0.0)
+    found = section_start(holds, level_holds, outputs, np.ones(outputs.size, dtype=bool), 0.95)
+    assert found.interval[0] <= found.start <= found.interval[1]
+    assert found.interval[1] - found.interval[0] <= 4 * 0.0025 + 1e-12  # grid steps round it
 
 
 def test_a_section_is_a_valve_at_many_currents_with_the_other_held_open_at_one():
@@ -113,12 +128,24 @@ def _two_valve_levels(seed, section):
 def test_a_section_places_a_gentle_valves_start_that_its_own_levels_cannot():
     with_section, alone = [], []
     for seed in range(4):
-        curves = fit_static_curves(_two_valve_levels(seed, True), 0.6, 1.2)
+        curves = fit_static_curves(_two_valve_levels(seed, True), 0.6, 1.2, read_sections=True)
         with_section.append(abs(curves.starts[1] - START))
         assert curves.start_intervals[1][0] <= START <= curves.start_intervals[1][1]
-        assert np.isfinite(curves.play_half_widths[1]) and np.isnan(curves.play_half_widths[0])
+        assert curves.play_half_widths[1] > 0.0 and curves.play_half_widths[0] is None
         alone.append(
-            abs(fit_static_curves(_two_valve_levels(seed, False), 0.6, 1.2).starts[1] - START)
+            abs(
+                fit_static_curves(
+                    _two_valve_levels(seed, False), 0.6, 1.2, read_sections=True
+                ).starts[1]
+                - START
+            )
         )
     assert max(with_section) < 0.01
     assert np.median(alone) > 2 * max(with_section)
+
+
+def test_sections_are_read_only_when_asked():
+    # Levels repeating on a grid (a multilevel record) look like sections; by default they stay
+    # ordinary levels of the curves' fit.
+    curves = fit_static_curves(_two_valve_levels(0, True), 0.6, 1.2)
+    assert not curves.section_levels.any() and curves.play_half_widths == (None, None)

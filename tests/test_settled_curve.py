@@ -12,6 +12,7 @@ from maskless.analysis.identification.hammerstein import estimate_hammerstein
 from maskless.analysis.identification.settled_curve import (
     SettledLevels,
     fit_static_curves,
+    samples_outside,
     settled_levels,
 )
 from maskless.systems.control.valve_level_design import random_level_currents
@@ -45,6 +46,15 @@ def test_a_settled_hold_gives_its_steady_output_and_short_holds_none():
     np.testing.assert_array_equal(found.currents[:, 0], [0.0, 3.0, 2.0])
     np.testing.assert_array_equal(found.samples, [10, 20, 40])
     np.testing.assert_allclose(found.outputs, [0.0, 3.0, 2.0], atol=0.02 * 3.0)
+
+
+def test_samples_outside_chosen_holds_leave_out_the_approach_and_a_settling_time():
+    levels = np.repeat([0.0, 1.0, 3.0, 2.0, 4.0], [50, 1, 60, 80, 40])
+    found = settled_levels(levels[:, None], np.zeros(levels.size), 40, 5)
+    np.testing.assert_array_equal(found.currents[:, 0], [0.0, 3.0, 2.0])
+    # The hold at 3.0 spans samples 51-110, its one-sample approach is 50; 10 more settle.
+    outside = samples_outside(found, np.array([False, True, False]), 10, levels.size)
+    np.testing.assert_array_equal(np.flatnonzero(~outside), np.arange(50, 121))
 
 
 def test_planted_curves_are_recovered_from_their_levels():

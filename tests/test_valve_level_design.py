@@ -156,6 +156,16 @@ def test_other_valve_currents_hold_the_other_valve_open_and_keep_both_approaches
     assert np.all(currents[0, inlet_firsts[~from_below]] == TOPS[0])
 
 
+def test_holds_over_the_rest_of_the_curve_keep_the_other_valve_shut():
+    currents = targeted_level_currents(8000, TS, TOPS, INTERVALS, 6.0, 0, 0.5, (0.0, 0.15))
+    firsts, levels = _holds(currents, 1)
+    high = INTERVALS[1][1]
+    for first, level in zip(firsts, levels, strict=True):
+        inlet = currents[0, first + 1 : first + 60]
+        # Inside the interval the inlet is held open; over the rest of the curve it is shut.
+        np.testing.assert_array_equal(inlet, 0.15 if level <= high else 0.0)
+
+
 def test_targeted_levels_are_seeded():
     np.testing.assert_array_equal(_targeted(seed=3), _targeted(seed=3))
     assert not np.array_equal(_targeted(seed=3), _targeted(seed=4))

@@ -41,8 +41,9 @@ from maskless.analysis.identification.hammerstein_problem import (
     HammersteinProblem,
 )
 from maskless.analysis.identification.settled_curve import (
+    enough_levels,
     fit_static_curves,
-    parameter_count,
+    samples_outside,
     settled_levels,
 )
 from maskless.systems.hammerstein_model import HammersteinModel
@@ -72,7 +73,9 @@ class HammersteinFit:
             settled holds (``settled_curve``), when the maps came from them; else empty.
         play_half_widths: per valve, its play band's half-width where a section of the record
             (``section_start``: its levels with the other valve held open) gave its starting
-            current, else NaN; empty when the maps did not come from settled holds.
+            current, else None; empty when the maps did not come from settled holds.
+        The fit percentages are over the whole estimation record, section holds included,
+        where the dynamics were not fitted (no sum of the maps describes them).
     """
 
     model: HammersteinModel
@@ -84,7 +87,7 @@ class HammersteinFit:
     searches: tuple[tuple[float, tuple[float, ...]], ...] = ()
     highest_currents: tuple[float, ...] = ()
     start_intervals: tuple[tuple[float, float], ...] = ()
-    play_half_widths: tuple[float, ...] = ()
+    play_half_widths: tuple[float | None, ...] = ()
 
     def starting_current_spread(self, tolerance: float = 0.01) -> list[tuple[float, float]]:
         """Per valve, (lowest, highest) starting current the record cannot tell apart.
@@ -114,7 +117,7 @@ class HammersteinFit:
         valves = {}
         for i, valve_map in enumerate(model.maps):
             name = input_names[i] if i < len(input_names) else f"input_{i}"
-            from_section = bool(self.play_half_widths) and np.isfinite(self.play_half_widths[i])
+            from_section = bool(self.play_half_widths) and self.play_half_widths[i] is not None
             valves[name] = {
                 "starting_current": valve_map.starting_current,
                 "starting_current_from": (
@@ -156,6 +159,7 @@ def estimate_hammerstein(
     input_unit: str = "",
     output_unit: str = "",
     max_evaluations: int = 3000,
+    read_sections: bool = False,
 ) -> HammersteinFit:
     """A Hammerstein model (or, with ``linear``, a linear one) by output-error prediction error.
 
@@ -170,6 +174,9 @@ def estimate_hammerstein(
         input_unit: the currents' unit, carried into the model.
         output_unit: the output's unit, carried into the model.
         max_evaluations: the search's budget of cost evaluations.
+        read_sections: take a valve's start from a section of the record where one was
+            designed (``settled_curve.fit_static_curves``); its holds then stay out of the
+            dynamics' criterion too.
 
     Returns:
         The fit: the lowest cost of the searches from the best few starting guesses, with each
@@ -183,7 +190,9 @@ def estimate_hammerstein(
     """
     u, y = _checked_record(u, y, order, map_segments, input_delay_samples, sample_period_s)
     curves, slowest, counted = (
-        (None, None, None) if linear else _settled_curves(u, y, order, input_delay_samples)
+        (None, None, None)
+        if linear
+        else _settled_curves(u, y, order, input_delay_samples, read_sections)
     )
     problem = HammersteinProblem(
         u, y, order, map_segments, input_delay_samples, linear, curves, slowest, counted
@@ -234,7 +243,7 @@ def estimate_hammerstein(
         for end in ends
     )
     intervals = () if curves is None else tuple(map(tuple, curves.start_intervals.tolist()))
-    play = () if curves is None else tuple(curves.play_half_widths.tolist())
+    play = () if curves is None else curves.play_half_widths
     return dataclasses.replace(
         fit, searches=searches, start_intervals=intervals, play_half_widths=play
     )
@@ -253,7 +262,7 @@ def estimate_linear_arx(
     return problem.model(problem.initial_guesses()[0], sample_period_s, {})
 
 
-def _settled_curves(u, y, order, delay):
+def _settled_curves(u, y, order, delay, read_sections):
     """(the settled holds' static curves (``settled_curve``), the slowest pole's radius, counted).
 
     A hold has settled ``_SETTLE_TIME_CONSTANTS`` time constants of the slowest pole of the
@@ -269,18 +278,14 @@ def _settled_curves(u, y, order, delay):
         return None, None, None
     settle = int(np.ceil(_SETTLE_TIME_CONSTANTS / -np.log(slowest)))
     levels = settled_levels(u, y, settle, max(1, settle // 8))
-    if levels.outputs.size < 2 * parameter_count(u.shape[1]):
+    if not enough_levels(levels.currents):
         return None, None, None
-    curves = fit_static_curves(levels, MAX_START, MAX_SATURATION)
+    curves = fit_static_curves(levels, MAX_START, MAX_SATURATION, read_sections)
     if curves is None or np.any(curves.gains() == 0.0):
         return None, None, None
     if not curves.section_levels.any():
         return curves, slowest, None
-    counted = np.ones(u.shape[0], dtype=bool)
-    bounds = np.append(levels.hold_first_samples, u.shape[0])
-    for hold in levels.level_holds[curves.section_levels]:
-        counted[max(bounds[hold] - 1, 0) : bounds[hold + 1] + settle] = False
-    return curves, slowest, counted
+    return curves, slowest, samples_outside(levels, curves.section_levels, settle, u.shape[0])
 
 
 def _fit(problem, theta, start, converged, message, evaluations, sample_period_s, units):

@@ -21,7 +21,8 @@ reads each valve's start from its section alone, here:
   the record in turn, gives it; the half-width w is profiled over a grid with s. Unmodelled, the
   play scatters a section's levels by 2 w times its slope, more than the noise on the outlet;
 - what the section cannot tell apart is reported as in ``settled_curve``: the starts whose
-  profile (the lowest over w) is within chi2(1, 0.95) = 3.84 residual variances of the best. A
+  profile (the lowest over w) is within chi2(1, 0.95) = 3.84 residual variances of the best
+  (``profile_interval``), open-ended where the section's levels never reach past the start. A
   section approached from one side only cannot tell a start from a play band's shift of it, and
   its interval is then as wide as the widest play: levels approached alternately from shut and
   from the top (``targeted_level_currents``) see both edges and separate the two.
@@ -30,6 +31,8 @@ reads each valve's start from its section alone, here:
 from dataclasses import dataclass
 
 import numpy as np
+
+from maskless.analysis.identification.profile_interval import CHI2_95, profile_interval
 
 # Distinct currents of a valve that make a section: a hinge and a play width (4 parameters) with
 # as many residual degrees of freedom left (convention).
@@ -40,9 +43,6 @@ _MAX_HALF_WIDTH = 0.05
 _HALF_WIDTH_STEP = 0.0025
 # The starts' grid step, as a fraction of the range (``settled_curve``'s refined step).
 _START_STEP = 1.0 / 400.0
-# The 95 % point of chi-squared with one degree of freedom: a profile interval's rise (here and
-# in ``settled_curve``).
-CHI2_95 = 3.841
 
 
 @dataclass(frozen=True)
@@ -69,7 +69,7 @@ def play_operator(currents: np.ndarray, half_width: float) -> np.ndarray:
     current leaving the band pushes it.
     """
     spool = np.empty(currents.size)
-    position = currents[0]
+    position = currents[0] if currents.size else 0.0
     for k, current in enumerate(currents):
         position = min(max(position, current - half_width), current + half_width)
         spool[k] = position
@@ -100,9 +100,18 @@ def find_sections(currents: np.ndarray) -> dict[int, np.ndarray]:
 
 
 def section_start(
-    hold_currents: np.ndarray, level_holds: np.ndarray, outputs: np.ndarray, mask: np.ndarray
+    hold_currents: np.ndarray,
+    level_holds: np.ndarray,
+    outputs: np.ndarray,
+    mask: np.ndarray,
+    max_start: float,
 ) -> SectionStart:
     """The valve's start from the levels in ``mask`` (see the module docstring).
+
+    Starts are searched from a play band's width below the section's lowest level to its highest
+    (clipped to 0 and ``max_start``). Where the profile is still within the interval's rise at
+    an end of that search, the data cannot bound the start there: the interval reaches 0 or
+    ``max_start``.
 
     Args:
         hold_currents: (H,) the valve's current over every hold of the record, in order, as
@@ -110,13 +119,13 @@ def section_start(
         level_holds: (M,) the hold each settled level is the end of.
         outputs: (M,) the settled levels' outputs.
         mask: (M,) the section's levels.
+        max_start: the highest start allowed, as a fraction of the range.
     """
     y = outputs[mask] - outputs[mask].mean()
     half_widths = np.arange(0.0, _MAX_HALF_WIDTH + 1e-12, _HALF_WIDTH_STEP)
-    lowest = hold_currents[level_holds[mask]].min()
-    starts = np.arange(
-        lowest - _MAX_HALF_WIDTH, hold_currents[level_holds[mask]].max() + 1e-12, _START_STEP
-    )
+    levels = hold_currents[level_holds[mask]]
+    lowest = max(levels.min() - _MAX_HALF_WIDTH, 0.0)
+    starts = np.arange(lowest, min(levels.max(), max_start) + 1e-12, _START_STEP)
     # (half-widths, starts) residual sum of squares of the best hinge.
     sse = np.empty((half_widths.size, starts.size))
     for row, half_width in enumerate(half_widths):
@@ -126,16 +135,22 @@ def section_start(
         spread = np.sum(hinge**2, axis=0)
         along = y @ hinge
         explained = np.divide(along**2, spread, out=np.zeros_like(spread), where=spread > 0)
-        sse[row] = y @ y - explained
-    # Strictly lowest: ties go to the earliest point (the narrowest play, the lowest start).
+        # Rounding can leave an exact fit a hair below zero.
+        sse[row] = np.maximum(y @ y - explained, 0.0)
+    # The lowest sum of squares (on exact ties the first: the narrowest play, the lowest start).
     row, column = np.unravel_index(np.argmin(sse), sse.shape)
     profile = sse.min(axis=0)
-    variance = sse[row, column] / max(1, y.size - 4)
-    within = starts[profile <= sse[row, column] + CHI2_95 * variance]
-    # The profile is known at the grid's points only: their neighbours are in the interval.
+    threshold = sse[row, column] * (1.0 + CHI2_95 / max(1, y.size - 4))
+    low, high = profile_interval(starts, profile, threshold, starts[column], _START_STEP)
+    # The profile crosses its threshold somewhere between grid points: a step past each end.
+    low, high = max(low - _START_STEP, 0.0), high + _START_STEP
+    if profile[0] <= threshold:  # no worse at the search's bottom: unbounded below
+        low = 0.0
+    if profile[-1] <= threshold:  # nor at its top: the hinge may lie above every level
+        high = max_start
     return SectionStart(
         start=float(starts[column]),
-        interval=(float(within.min() - _START_STEP), float(within.max() + _START_STEP)),
+        interval=(low, min(high, max_start)),
         play_half_width=float(half_widths[row]),
         levels=mask,
     )

@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.optimize
 
+from maskless.analysis.identification.profile_interval import CHI2_95, profile_interval
 from maskless.analysis.identification.section_start import (
-    CHI2_95,
     SectionStart,
     find_sections,
     section_start,
@@ -52,6 +52,16 @@ MAP_PIECES = 16
 def parameter_count(inputs: int) -> int:
     """The curves' parameters: the rest output, and per input two ends and two shape steps."""
     return 1 + 4 * inputs
+
+
+def enough_levels(currents: np.ndarray) -> bool:
+    """Whether levels at ``currents`` (M, inputs) can fit the curves.
+
+    Twice the curves' parameters, and each input at two distinct currents at least.
+    """
+    return currents.shape[0] >= 2 * parameter_count(currents.shape[1]) and all(
+        np.unique(currents[:, i]).size >= 2 for i in range(currents.shape[1])
+    )
 
 
 @dataclass(frozen=True)
@@ -80,7 +90,7 @@ class StaticCurves:
     Bernstein coefficients' non-negative steps times the input's sign, so each curve's full value
     (its DC gain) is their sum; ``start_intervals`` (inputs, 2) the starting currents' 95 %
     profile intervals; ``play_half_widths`` (inputs,) the half-width of each valve's play band
-    where a section found its start (``section_start``), else NaN; ``section_levels`` (M,) which
+    where a section found its start (``section_start``), else None; ``section_levels`` (M,) which
     of the settled levels were sections, left out of the curves' fit.
     """
 
@@ -90,7 +100,7 @@ class StaticCurves:
     rest_output: float
     residual_rms: float
     start_intervals: np.ndarray
-    play_half_widths: np.ndarray
+    play_half_widths: tuple[float | None, ...]
     section_levels: np.ndarray
 
     def curve(self, index: int, currents) -> np.ndarray:
@@ -130,20 +140,39 @@ def settled_levels(u, y, settle_samples: int, min_tail_samples: int) -> SettledL
     )
 
 
-def fit_static_curves(levels: SettledLevels, max_start: float, max_saturation: float):
+def samples_outside(levels: SettledLevels, chosen: np.ndarray, settle: int, samples: int):
+    """(samples,) True outside the holds of the ``chosen`` levels (M,).
+
+    Each hold is taken from the sample before it (a one-sample approach) to ``settle`` samples
+    after it ends (the plant's return).
+    """
+    outside = np.ones(samples, dtype=bool)
+    bounds = np.append(levels.hold_first_samples, samples)
+    for hold in levels.level_holds[chosen]:
+        outside[max(bounds[hold] - 1, 0) : bounds[hold + 1] + settle] = False
+    return outside
+
+
+def fit_static_curves(
+    levels: SettledLevels, max_start: float, max_saturation: float, read_sections: bool = False
+):
     """The ``StaticCurves`` that fit the settled levels best (see the module docstring).
 
     Currents are searched as fractions of each input's range over the levels: starting currents
     from its lowest level up to ``max_start`` of the range, saturation currents up to
-    ``max_saturation`` (past 1: beyond the highest level). Returns None when some input was
-    held at fewer than two distinct levels.
+    ``max_saturation`` (past 1: beyond the highest level). With ``read_sections`` (a record
+    designed with sections: ``valve_level_design.targeted_level_currents`` with
+    ``other_valve_currents_a``), a valve with a section takes its start from it
+    (``section_start``) and those levels stay out of the curves' fit; otherwise a record whose
+    levels repeat on a grid would be read as sections it was never designed to have. Returns
+    None when some input was held at fewer than two distinct levels.
     """
     u, y = levels.currents, levels.outputs
     inputs = u.shape[1]
     if any(np.unique(u[:, i]).size < 2 for i in range(inputs)):
         return None
     low, span = u.min(axis=0), np.ptp(u, axis=0)
-    sections = _section_starts(levels, low, span)
+    sections = _section_starts(levels, low, span, max_start) if read_sections else {}
     in_sections = np.zeros(y.size, dtype=bool)
     for found in sections.values():
         in_sections |= found.levels
@@ -184,37 +213,35 @@ def fit_static_curves(levels: SettledLevels, max_start: float, max_saturation: f
         start_intervals=np.array(
             [low[i] + span[i] * np.asarray(intervals[i]) for i in range(inputs)]
         ),
-        play_half_widths=np.array(
-            [
-                span[i] * sections[i].play_half_width if i in sections else np.nan
-                for i in range(inputs)
-            ]
+        play_half_widths=tuple(
+            span[i] * sections[i].play_half_width if i in sections else None for i in range(inputs)
         ),
         section_levels=in_sections,
     )
 
 
-def _section_starts(levels: SettledLevels, low, span) -> dict[int, SectionStart]:
+def _section_starts(levels: SettledLevels, low, span, max_start) -> dict[int, SectionStart]:
     """Per valve with a section (``section_start``), its start, as fractions of its range.
 
-    None where the levels outside the sections would leave some valve fewer than two distinct
+    Empty where the levels outside the sections would leave some valve fewer than two distinct
     currents or the curves fewer than twice their parameters: the sections then stay in the fit.
     """
     masks = find_sections(levels.currents)
     if not masks:
         return {}
     outside = ~np.any(list(masks.values()), axis=0)
-    rest = levels.currents[outside]
-    if rest.shape[0] < 2 * parameter_count(rest.shape[1]) or any(
-        np.unique(rest[:, i]).size < 2 for i in range(rest.shape[1])
-    ):
+    if not enough_levels(levels.currents[outside]):
         return {}
     holds, level_holds = levels.hold_currents, levels.level_holds
     if holds is None:
         holds, level_holds = levels.currents, np.arange(levels.outputs.size)
     return {
         valve: section_start(
-            (holds[:, valve] - low[valve]) / span[valve], level_holds, levels.outputs, mask
+            (holds[:, valve] - low[valve]) / span[valve],
+            level_holds,
+            levels.outputs,
+            mask,
+            max_start,
         )
         for valve, mask in masks.items()
     }
@@ -231,14 +258,9 @@ def _start_interval(x, y, held, max_start, max_saturation):
 
 
 def _within(profile, threshold, best_start):
-    """(lowest, highest) start with its profile within ``threshold``, or a step from the best.
-
-    The profile is known at the coarse grid's points only, so the best start's neighbours on
-    that grid are in the interval.
-    """
+    """(lowest, highest) start with its coarse profile within ``threshold``."""
     starts, lowest = profile
-    kept = np.append(starts[lowest <= threshold], best_start + np.array([-1.0, 1.0]) * _GRID_STEP)
-    return float(max(kept.min(), 0.0)), float(kept.max())
+    return profile_interval(starts, lowest, threshold, best_start, _GRID_STEP)
 
 
 def _profile(x, y, held, max_start, max_saturation, fixed_start=None):

@@ -107,8 +107,9 @@ class HammersteinProblem:
     ):
         """Normalises the record (a checked one: ``hammerstein._checked_record``)."""
         self.order, self.segments, self.delay, self.linear = order, segments, delay, linear
-        # The samples the criterion and the ARX start count (all by default).
-        self.counted = np.ones(y.size, dtype=bool) if counted is None else counted
+        # The samples the criterion and the ARX start count; None: all, with no indexing added to
+        # each of the search's thousands of evaluations.
+        self.counted = counted
         self.inputs = u.shape[1]
         self.u_low, self.u_range = u.min(axis=0), np.ptp(u, axis=0)
         self.y_mean, self.y_scale = float(y.mean()), float(np.std(y))
@@ -181,11 +182,15 @@ class HammersteinProblem:
 
     def residuals(self, theta):
         """The simulation's errors (normalised)."""
-        error = (self.y - self.simulate(theta))[self.counted]
+        error = self._counted(self.y - self.simulate(theta))
         if not np.all(np.isfinite(error)):
             # Finite and large: the search turns back instead of stopping on a NaN.
             return np.full(error.size, 1e3)
         return error
+
+    def _counted(self, samples):
+        """``samples`` (N, ...) at the counted samples only."""
+        return samples if self.counted is None else samples[self.counted]
 
     def cost(self, theta) -> float:
         """The sum of the squared residuals."""
@@ -252,7 +257,7 @@ class HammersteinProblem:
             regressors.append(np.ones((rows, 1)))
             matrix = np.column_stack(regressors)
             target = self.y[lag:]
-            if not self.counted.all():
+            if self.counted is not None:
                 # A row counts when its output and every lagged sample it reads are counted.
                 window = np.lib.stride_tricks.sliding_window_view(self.counted, lag + 1)
                 rows_counted = window.all(axis=1)
@@ -290,7 +295,7 @@ class HammersteinProblem:
         if not fallback:
             # y_op: the output the model leaves with no input at all, fitted afresh for the
             # simulated (not one-step) criterion.
-            theta[-1] = float(np.mean((self.y - self.simulate(theta))[self.counted]))
+            theta[-1] = float(np.mean(self._counted(self.y - self.simulate(theta))))
         return theta
 
     @staticmethod

@@ -53,13 +53,11 @@ class SectionStart:
         start: the best starting current.
         interval: (lowest, highest) start within the profile's 95 % rise.
         play_half_width: the play band's half-width at the best fit.
-        levels: (M,) which of the settled levels form the section.
     """
 
     start: float
     interval: tuple[float, float]
     play_half_width: float
-    levels: np.ndarray
 
 
 def play_operator(currents: np.ndarray, half_width: float) -> np.ndarray:
@@ -152,5 +150,4 @@ def section_start(
         start=float(starts[column]),
         interval=(low, min(high, max_start)),
         play_half_width=float(half_widths[row]),
-        levels=mask,
     )

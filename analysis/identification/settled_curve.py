@@ -32,11 +32,7 @@ import numpy as np
 import scipy.optimize
 
 from maskless.analysis.identification.profile_interval import CHI2_95, profile_interval
-from maskless.analysis.identification.section_start import (
-    SectionStart,
-    find_sections,
-    section_start,
-)
+from maskless.analysis.identification.section_start import find_sections, section_start
 
 # The grid's step for the starting and saturation currents, as a fraction of each input's range,
 # and the step of the refinement around the coarse grid's best point.
@@ -172,10 +168,9 @@ def fit_static_curves(
     if any(np.unique(u[:, i]).size < 2 for i in range(inputs)):
         return None
     low, span = u.min(axis=0), np.ptp(u, axis=0)
-    sections = _section_starts(levels, low, span, max_start) if read_sections else {}
-    in_sections = np.zeros(y.size, dtype=bool)
-    for found in sections.values():
-        in_sections |= found.levels
+    sections, in_sections = {}, np.zeros(y.size, dtype=bool)
+    if read_sections:
+        sections, in_sections = _section_starts(levels, low, span, max_start)
     u, y = u[~in_sections], y[~in_sections]
     x = (u - low) / span
     # Start each valve linear over its whole range; the sweeps move its ends.
@@ -220,22 +215,22 @@ def fit_static_curves(
     )
 
 
-def _section_starts(levels: SettledLevels, low, span, max_start) -> dict[int, SectionStart]:
-    """Per valve with a section (``section_start``), its start, as fractions of its range.
+def _section_starts(levels: SettledLevels, low, span, max_start):
+    """({valve: its ``SectionStart``}, (M,) the levels in any section), fractions of the range.
 
-    Empty where the levels outside the sections would leave some valve fewer than two distinct
-    currents or the curves fewer than twice their parameters: the sections then stay in the fit.
+    None found where the levels outside the sections would leave some valve fewer than two
+    distinct currents or the curves fewer than twice their parameters: they then stay in the fit.
     """
     masks = find_sections(levels.currents)
-    if not masks:
-        return {}
-    outside = ~np.any(list(masks.values()), axis=0)
-    if not enough_levels(levels.currents[outside]):
-        return {}
+    in_sections = np.zeros(levels.outputs.size, dtype=bool)
+    for mask in masks.values():
+        in_sections |= mask
+    if not masks or not enough_levels(levels.currents[~in_sections]):
+        return {}, np.zeros(levels.outputs.size, dtype=bool)
     holds, level_holds = levels.hold_currents, levels.level_holds
     if holds is None:
         holds, level_holds = levels.currents, np.arange(levels.outputs.size)
-    return {
+    found = {
         valve: section_start(
             (holds[:, valve] - low[valve]) / span[valve],
             level_holds,
@@ -245,6 +240,7 @@ def _section_starts(levels: SettledLevels, low, span, max_start) -> dict[int, Se
         )
         for valve, mask in masks.items()
     }
+    return found, in_sections
 
 
 def _start_interval(x, y, held, max_start, max_saturation):

@@ -9,12 +9,12 @@ fitted, the rest held out.
 With --targeted-share F, the record is designed sequentially
 (``valve_level_experiment.run_sequential_experiment``): the last F of the fitted part is replaced
 by levels inside each valve's starting-current interval as a Hammerstein fit of the record before
-it finds it (in --rounds parts, each designed from the record up to it), held --targeted-hold-s
-each, approached alternately from below and above (a --coverage-share of them over the rest of
-each curve, from the interval's top to --top-ma), the other valve meanwhile shut or held at
---other-valve-ma; the rest of the record, the held-out part
-included, is the same as without it, and the total length the same. F = 0 (the default) is the
-random design alone, bit for bit.
+it finds it (in --rounds parts, each designed from the record up to it; the valve whose interval
+is wider gets more of them), held --targeted-hold-s each, approached alternately from below and
+above, the other valve meanwhile shut or held at --other-valve-ma; a --coverage-share of them goes
+instead to the widest stretch of either curve, above its interval, that no settled level has
+shown. The rest of the record, the held-out part included, is the same as without it, and the
+total length the same. F = 0 (the default) is the random design alone, bit for bit.
 
 Figures, against the issue's targets:
 
@@ -111,7 +111,7 @@ def pneumatic_record(config, args, seed):
                 input_delay_samples=args.delay,
                 read_sections=any(args.other_valve_ma),
             )
-            return fit.starting_current_spread()
+            return fit.starting_current_spread(), fit.settled_currents or ((), ())
 
         applied, height_m, _, intervals = run_sequential_experiment(
             config,

@@ -7,14 +7,15 @@ fusion watching the head), with its two valve commands from the designed current
 **Sequential design** (``run_sequential_experiment``): uniform levels put only a level or two
 near each valve's start in an hour, and a valve driven up from shut rests at the lower edge of
 its play band, so the start reads high by half the band. So part of the record is designed from
-what the record before it shows: the levels so far are fitted, and the next stretch holds each
-valve, in turn, at levels inside the interval of starting currents that fit cannot tell apart
-(``valve_level_design.targeted_level_currents``), approached alternately from below (from shut)
-and from above (a sample at the valve's top current first), so the hysteresis averages out. The
-stretch is taken from the random levels, so fewer of them reach the curve's top; a share of the
-targeted holds can go there instead (``coverage_share``: levels from the interval's top to the
-valve's top current). A valve whose own effect near its start is below the levels' scatter
-(the outlet, venting a bladder at rest) can be held with the other valve open instead
+what the record before it shows: the levels so far are fitted, and the next stretch holds the
+valves at levels inside the intervals of starting currents that fit cannot tell apart, the valve
+whose interval is wider more often (``valve_level_design.targeted_level_currents``), approached
+alternately from below (from shut) and from above (a sample at the valve's top current first),
+so the hysteresis averages out. The stretch is taken from the random levels, so fewer of them
+reach the curve's top; a share of the targeted holds can go there instead (``coverage_share``:
+each in the middle of the widest stretch of either curve, above its interval, that no settled
+level has shown yet). A valve whose own effect near its start is below the levels' scatter (the
+outlet, venting a bladder at rest) can be held with the other valve open instead
 (``other_valve_currents_a``): the fit then reads its start from that section of the record
 (``analysis.identification.section_start``). It reads the record and the datasheet range only.
 """
@@ -37,7 +38,7 @@ def run_sequential_experiment(
     sample_period_s: float,
     top_currents_a: tuple[float, float],
     targeted: tuple[int, int],
-    start_intervals_of: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    reading_of: Callable[[np.ndarray, np.ndarray], tuple],
     hold_s: float,
     seed: int,
     rounds: int = 1,
@@ -60,7 +61,7 @@ def run_sequential_experiment(
         sample_period_s: the period of a sample (s).
         top_currents_a: each valve's highest current (A), the datasheet range's top.
         targeted: (first, end) samples of the stretch to design, 2 <= first < end <= N.
-        start_intervals_of: the fit of the record so far (see above).
+        reading_of: the fit of the record so far (see above).
         hold_s: how long each targeted level is held (s).
         seed: the targeted levels' seed.
         rounds: designs of the stretch, each from the record up to its part.
@@ -89,7 +90,8 @@ def run_sequential_experiment(
     seen, intervals = [], []
     for round_index, (begin, stop) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
         applied, fused, _ = run_two_valve_experiment(config, currents[:, :begin], sample_period_s)
-        found = np.clip(np.asarray(start_intervals_of(applied.T, fused), float), 0.0, tops[:, None])
+        spread, settled = reading_of(applied.T, fused)
+        found = np.clip(np.asarray(spread, float), 0.0, tops[:, None])
         intervals.append(found)
         seen.append(fused)
         currents[:, begin:stop] = targeted_level_currents(
@@ -101,6 +103,7 @@ def run_sequential_experiment(
             seed + round_index,
             coverage_share,
             other_valve_currents_a,
+            settled,
         )
     applied, fused, run = run_two_valve_experiment(config, currents, sample_period_s)
     for earlier in seen:

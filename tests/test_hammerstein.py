@@ -123,10 +123,13 @@ def test_the_summary_names_where_each_start_came_from(planted_fit):
     joint = fit.summary()["valves"]["inlet"]
     assert joint["starting_current_from"] == "the joint search" and joint["play_half_width"] is None
     sectioned = dataclasses.replace(
-        fit, start_intervals=((0.05, 0.07), (0.04, 0.06)), play_half_widths=(None, 0.0025)
+        fit,
+        start_intervals=((0.05, 0.07), (0.04, 0.06)),
+        play_half_widths=(0.001, 0.0025),
+        starts_from_sections=(False, True),
     ).summary()["valves"]
     assert sectioned["inlet"]["starting_current_from"] == "the settled levels"
-    assert sectioned["inlet"]["play_half_width"] is None
+    assert sectioned["inlet"]["play_half_width"] == 0.001
     assert sectioned["outlet"]["starting_current_from"].startswith("a section")
     assert sectioned["outlet"]["play_half_width"] == 0.0025
     assert sectioned["outlet"]["starting_current_spread"] == [0.04, 0.06]
@@ -225,8 +228,11 @@ def test_a_bad_model_is_refused_naming_the_field(change, message):
 
 # The record of benchmarks/hammerstein.py (its defaults: an hour, stratified levels held 5-60 s,
 # seed 0; the design reads no starting current, the idle valve is shut), where it measured
-# (currents in mA): the inlet's static curve within 6.2 % of full scale, its starting current at
-# 63.0 (the plant's: 60), and 26.5 points of held-out simulation fit over the best linear model.
+# (currents in mA): the inlet's static curve within 2.9 % of full scale, its starting current at
+# 58.4 (the plant's: 60), and 24.7 points of held-out simulation fit over the best linear model.
+# The curves read the valves' play (``settled_curve``) but the model runs none: its map is the
+# curve at the middle of the band, which cost 0.6 points here against the map fitted without
+# the play (that put the start at 63.0).
 # The two-stage fit reads the curve from the holds that settled; an hour is the shortest record
 # that puts some fifteen settled levels on each valve.
 PNEUMATIC_DURATION_S = 3600.0
@@ -261,4 +267,4 @@ def test_on_the_pneumatic_plant_the_inlet_curve_is_found_and_beats_linear_models
     assert model.valve_linear_model(0).dc_gain() == pytest.approx(1.0)
     hammerstein = fit_percent(y[split:], model.simulate(u[split:]))
     linear = estimate_hammerstein(u[:split], y[:split], 2, period_s, linear=True).model
-    assert hammerstein > fit_percent(y[split:], linear.simulate(u[split:])) + 25.0
+    assert hammerstein > fit_percent(y[split:], linear.simulate(u[split:])) + 20.0

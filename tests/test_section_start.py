@@ -131,7 +131,7 @@ def test_a_section_places_a_gentle_valves_start_that_its_own_levels_cannot():
         curves = fit_static_curves(_two_valve_levels(seed, True), 0.6, 1.2, read_sections=True)
         with_section.append(abs(curves.starts[1] - START))
         assert curves.start_intervals[1][0] <= START <= curves.start_intervals[1][1]
-        assert curves.play_half_widths[1] > 0.0 and curves.play_half_widths[0] is None
+        assert curves.from_sections == (False, True) and curves.play_half_widths[1] > 0.0
         alone.append(
             abs(
                 fit_static_curves(
@@ -148,4 +148,4 @@ def test_sections_are_read_only_when_asked():
     # Levels repeating on a grid (a multilevel record) look like sections; by default they stay
     # ordinary levels of the curves' fit.
     curves = fit_static_curves(_two_valve_levels(0, True), 0.6, 1.2)
-    assert not curves.section_levels.any() and curves.play_half_widths == (None, None)
+    assert not curves.section_levels.any() and curves.from_sections == (False, False)

@@ -8,6 +8,7 @@ by its own code with holds long enough to settle.
 import numpy as np
 import pytest
 
+from maskless.analysis.identification import section_start
 from maskless.analysis.identification.hammerstein import estimate_hammerstein
 from maskless.analysis.identification.settled_curve import (
     SettledLevels,
@@ -74,6 +75,36 @@ def test_planted_curves_are_recovered_from_their_levels():
         truth = _planted_curve(grid, *PLANTED_CURVES[i])
         assert np.max(np.abs(curves.curve(i, grid) - truth)) < 0.02 * np.max(np.abs(truth))
     assert curves.rest_output == pytest.approx(rest, abs=2e-3)
+
+
+def _levels_through_play(seed, half_width_a):
+    """Split-range levels of the planted curves seen where each valve's spool rests.
+
+    Each driven level is approached from shut or from the top current (a one-sample hold
+    before it), at random; the spool of a valve with play rests at the edge of its band.
+    """
+    rng = np.random.default_rng(seed)
+    currents = random_level_currents(120, 1.0, (0.19, 0.19), (1.0, 1.0), seed).T
+    approaches = np.where(currents > 0.0, 0.19 * (rng.random(currents.shape) < 0.5), 0.0)
+    holds = np.stack([approaches, currents], axis=1).reshape(-1, 2)
+    level_holds = np.arange(1, holds.shape[0], 2)
+    spools = [section_start.play_operator(holds[:, i], half_width_a)[level_holds] for i in range(2)]
+    outputs = 0.2 + sum(_planted_curve(spools[i], *PLANTED_CURVES[i]) for i in range(2))
+    noisy = outputs + 1e-3 * rng.standard_normal(outputs.size)
+    return SettledLevels(currents, noisy, np.ones(noisy.size), holds, level_holds)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_levels_seen_through_a_valves_play_give_its_curve_and_its_play(seed):
+    # 2.6 mA of play: the pneumatic plant's inlet (the datasheet allows up to 9.5 mA here).
+    half_width_a = 0.0026
+    curves = fit_static_curves(_levels_through_play(seed, half_width_a), 0.95, 1.5)
+    grid = np.linspace(0.0, 0.19, 381)
+    for i, (start, *_) in enumerate(PLANTED_CURVES):
+        assert curves.starts[i] == pytest.approx(start, abs=2e-3)
+        assert curves.play_half_widths[i] == pytest.approx(half_width_a, abs=1e-3)
+        truth = _planted_curve(grid, *PLANTED_CURVES[i])
+        assert np.max(np.abs(curves.curve(i, grid) - truth)) < 0.02 * np.max(np.abs(truth))
 
 
 def test_a_valve_held_at_one_level_has_no_curve():

@@ -5,6 +5,10 @@ import pytest
 
 from maskless.systems.control.excitation import random_holds
 from maskless.systems.control.valve_level_design import (
+    MIN_TURN_SHARE,
+    _gap_filling,
+    _interleaved,
+    _width_share,
     random_level_currents,
     targeted_level_currents,
 )
@@ -99,43 +103,83 @@ def _targeted(seed=0, samples=8000, hold_s=6.0):
 
 
 def _holds(currents, valve):
-    """(first sample, level) of each run of ``valve``'s current held above 0 (its last sample)."""
-    row = currents[valve]
-    driven = np.flatnonzero(row > 0.0)
-    firsts = driven[np.diff(np.r_[-2, driven]) > 1]
-    lasts = driven[np.diff(np.r_[driven, row.size + 2]) > 1]
-    return firsts, row[lasts]
+    """(first sample, level) of each hold of ``valve`` in a targeted stretch of 60-sample holds.
+
+    A hold's first sample is its approach: the top current (from above), shut or the level
+    itself (from below); its level is its last sample.
+    """
+    firsts = np.arange(0, currents.shape[1] - 59, 60)
+    mine = firsts[currents[valve, firsts + 59] > 0.0]
+    return mine, currents[valve, mine + 59]
 
 
-def test_targeted_levels_take_turns_inside_each_interval_approached_from_both_sides():
-    currents = _targeted()
+def test_the_start_placed_worse_gets_more_of_the_holds_inside_the_intervals():
+    assert _width_share(np.array(INTERVALS), np.array(TOPS)) == MIN_TURN_SHARE
+    equal = np.array([[0.05, 0.07], [0.04, 0.06]])
+    assert _width_share(equal, np.array([0.2, 0.2])) == pytest.approx(0.5)
+    wide = np.array([[0.05, 0.08], [0.04, 0.05]])
+    assert _width_share(wide, np.array([0.2, 0.2])) == pytest.approx(0.75)
+    assert _width_share(np.array([[0.05, 0.05], [0.04, 0.04]]), np.array(TOPS)) == 0.5
+    for share in (0.5, 0.25, 0.8):
+        turns = _interleaved(40, share)
+        # Every prefix stays within one hold of its share.
+        behind = np.cumsum(turns == 0) - share * np.arange(1, 41)
+        assert np.all(np.abs(behind) <= 1.0)
+
+
+def test_targeted_levels_spread_each_valve_over_its_interval_approached_from_both_sides():
+    currents = _targeted(samples=120 * 60)  # whole holds only
     assert not np.any((currents[0] > 0.0) & (currents[1] > 0.0))
+    counts = []
     for valve, ((low, high), top) in enumerate(zip(INTERVALS, TOPS, strict=True)):
         firsts, levels = _holds(currents, valve)
+        counts.append(levels.size)
         assert np.all((levels >= low) & (levels <= high))
-        # Each hold is 60 samples, its first the top current (from above) or the level (below).
-        np.testing.assert_array_equal(np.diff(firsts), 120)
+        # As many equal parts of the interval as levels, one level in each.
+        parts = np.floor((levels - low) / (high - low) * levels.size).astype(int)
+        np.testing.assert_array_equal(np.sort(parts), np.arange(levels.size))
         from_above = currents[valve, firsts] == top
-        np.testing.assert_array_equal(from_above | (currents[valve, firsts] == levels), True)
         assert np.all(from_above[1:] != from_above[:-1])
-        # Shut before each hold, so a hold without the pulse is approached from below.
-        assert np.all(currents[valve, firsts[firsts > 0] - 1] == 0.0)
-        eighths = np.floor((levels - low) / (high - low) * 8).astype(int)
-        for block in eighths[: eighths.size // 8 * 8].reshape(-1, 8):
-            np.testing.assert_array_equal(np.sort(block), np.arange(8))
+        # From below, the valve was shut before the level: at the hold's first sample or before.
+        below = firsts[~from_above]
+        shut_first = currents[valve, below] == 0.0
+        assert np.all(shut_first | (currents[valve, np.maximum(below - 1, 0)] == 0.0))
+    # The outlet's interval is wider: it gets four holds to the inlet's one.
+    assert counts[0] == pytest.approx(MIN_TURN_SHARE * sum(counts), abs=1)
 
 
-def test_a_coverage_share_puts_every_other_hold_over_the_rest_of_the_curve():
-    currents = targeted_level_currents(8000, TS, TOPS, INTERVALS, 6.0, 0, coverage_share=0.5)
-    for valve, ((low, high), top) in enumerate(zip(INTERVALS, TOPS, strict=True)):
-        firsts, levels = _holds(currents, valve)
-        inside, above = levels[0::2], levels[1::2]
-        assert np.all((inside >= low) & (inside <= high))
-        assert np.all((above >= high) & (above <= top))
-        assert np.mean(above > (high + top) / 2) == pytest.approx(0.5, abs=0.1)
-        from_above = currents[valve, firsts] == top
-        for kind in (from_above[0::2], from_above[1::2]):
-            assert np.all(kind[1:] != kind[:-1])
+def test_holds_over_the_rest_of_the_curve_fill_its_widest_gaps():
+    lows, tops = np.array([INTERVALS[0][1], INTERVALS[1][1]]), np.array(TOPS)
+    # Seen: the inlet at 0.09 A, the outlet at 0.13 A. The inlet's 0.09-0.19 A gap is 53 % of
+    # its range, the outlet's 0.13-0.18 A 28 %: the inlet's is split first, then the outlet's
+    # (28 % against the inlet's halves, 26 %).
+    settled = ((0.09,), (0.13,))
+    valves, currents = _gap_filling(settled, lows, tops, 2)
+    np.testing.assert_array_equal(valves, [0, 1])
+    np.testing.assert_allclose(currents, [0.14, 0.155])
+    # Each hold splits a gap at least as wide as any left after it.
+    valves, currents = _gap_filling(settled, lows, tops, 12)
+    points = [
+        np.sort(np.r_[low, top, seen, currents[valves == v]])
+        for v, (low, top, seen) in enumerate(zip(lows, tops, settled, strict=True))
+    ]
+    widest_left = max(np.diff(p).max() / top for p, top in zip(points, tops, strict=True))
+    last = valves[-1]
+    neighbours = np.sort(points[last])
+    at = np.searchsorted(neighbours, currents[-1])
+    assert widest_left <= (neighbours[at + 1] - neighbours[at - 1]) / tops[last] + 1e-12
+    # Through the design: the holds above the intervals are those, the other valve shut.
+    stretch = targeted_level_currents(1800, TS, TOPS, INTERVALS, 6.0, 0, 0.5, (0.0, 0.15), settled)
+    covering = []
+    for valve in (0, 1):
+        firsts, levels = _holds(stretch, valve)
+        # The inlet held at 0.15 A is the outlet's hold inside its interval, not the inlet's.
+        above = (levels > lows[valve]) & (levels != (0.15, 0.0)[valve])
+        covering += levels[above].tolist()
+        for first in firsts[above]:
+            np.testing.assert_array_equal(stretch[1 - valve, first + 1 : first + 60], 0.0)
+    expected = _gap_filling(settled, lows, tops, len(covering))[1]
+    np.testing.assert_allclose(np.sort(covering), np.sort(expected))
 
 
 def test_other_valve_currents_hold_the_other_valve_open_and_keep_both_approaches():
@@ -182,6 +226,7 @@ def test_targeted_levels_are_seeded():
         ({"coverage_share": 1.5}, "coverage_share = 1.5"),
         ({"other_valve_currents_a": (0.185, 0.0)}, "other_valve_currents_a"),
         ({"other_valve_currents_a": (-0.01, 0.0)}, "other_valve_currents_a"),
+        ({"settled_currents_a": ((0.1,),)}, "settled_currents_a"),
     ],
 )
 def test_bad_targeted_arguments_name_the_argument(arguments, message):

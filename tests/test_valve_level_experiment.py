@@ -18,12 +18,22 @@ def test_a_sequential_design_reads_only_the_record_before_each_round():
     planned = random_level_currents(900, period_s, TOPS, (2.0, 6.0), 1)
     seen = []
 
-    def start_intervals_of(u, y):
+    def reading_of(u, y):
         seen.append((u.copy(), y.copy()))
-        return INTERVALS
+        # The currents each valve's settled holds showed its curve at: here, one made up.
+        return INTERVALS, ((0.1 + 0.01 * len(seen),), ())
 
     applied, fused, _, intervals = run_sequential_experiment(
-        config, planned, period_s, TOPS, (300, 700), start_intervals_of, 4.0, 0, rounds=2
+        config,
+        planned,
+        period_s,
+        TOPS,
+        (300, 700),
+        reading_of,
+        4.0,
+        0,
+        rounds=2,
+        coverage_share=0.5,
     )
     # Each round saw the final record up to its part, and nothing after.
     assert [u.shape[0] for u, _ in seen] == [300, 500]
@@ -34,7 +44,10 @@ def test_a_sequential_design_reads_only_the_record_before_each_round():
     np.testing.assert_array_equal(applied[:, :300], planned[:, :300])
     np.testing.assert_array_equal(applied[:, 700:], planned[:, 700:])
     for begin, stop, seed in ((300, 500, 0), (500, 700, 1)):
-        expected = targeted_level_currents(stop - begin, period_s, TOPS, INTERVALS, 4.0, seed)
+        settled = ((0.1 + 0.01 * (seed + 1),), ())
+        expected = targeted_level_currents(
+            stop - begin, period_s, TOPS, INTERVALS, 4.0, seed, 0.5, (0.0, 0.0), settled
+        )
         np.testing.assert_array_equal(applied[:, begin:stop], expected)
     np.testing.assert_array_equal(intervals, [INTERVALS] * 2)
 
@@ -50,7 +63,7 @@ def test_bad_sequential_arguments_name_the_argument(arguments, message):
         "sample_period_s": TS,
         "top_currents_a": TOPS,
         "targeted": (300, 700),
-        "start_intervals_of": None,
+        "reading_of": None,
         "hold_s": 4.0,
         "seed": 0,
         **arguments,

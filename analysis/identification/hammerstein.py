@@ -71,9 +71,13 @@ class HammersteinFit:
             past it was never seen, only allowed.
         start_intervals: per valve, the starting current's 95 % profile interval from the
             settled holds (``settled_curve``), when the maps came from them; else empty.
-        play_half_widths: per valve, its play band's half-width where a section of the record
-            (``section_start``: its levels with the other valve held open) gave its starting
-            current, else None; empty when the maps did not come from settled holds.
+        play_half_widths: per valve, its play band's half-width the settled holds show;
+            empty as ``start_intervals``.
+        starts_from_sections: per valve, whether a section of the record (``section_start``:
+            its levels with the other valve held open) gave its starting current; empty as
+            ``start_intervals``.
+        settled_currents: per valve, the currents of the settled holds that showed its curve
+            alone (the others shut), in the record's order; empty as ``start_intervals``.
         The fit percentages are over the whole estimation record, section holds included,
         where the dynamics were not fitted (no sum of the maps describes them).
     """
@@ -87,7 +91,9 @@ class HammersteinFit:
     searches: tuple[tuple[float, tuple[float, ...]], ...] = ()
     highest_currents: tuple[float, ...] = ()
     start_intervals: tuple[tuple[float, float], ...] = ()
-    play_half_widths: tuple[float | None, ...] = ()
+    play_half_widths: tuple[float, ...] = ()
+    starts_from_sections: tuple[bool, ...] = ()
+    settled_currents: tuple[tuple[float, ...], ...] = ()
 
     def starting_current_spread(self, tolerance: float = 0.01) -> list[tuple[float, float]]:
         """Per valve, (lowest, highest) starting current the record cannot tell apart.
@@ -109,7 +115,7 @@ class HammersteinFit:
 
         Each valve's starting current, where it came from and ``starting_current_spread``,
         saturation current and the record's highest current, DC gain and the static curve at the
-        map's knots; ``play_half_width`` where a section gave the start.
+        map's knots; ``play_half_width`` the settled holds show (None without them).
         """
         model = self.model
         gains = model.dc_gains()
@@ -117,7 +123,7 @@ class HammersteinFit:
         valves = {}
         for i, valve_map in enumerate(model.maps):
             name = input_names[i] if i < len(input_names) else f"input_{i}"
-            from_section = bool(self.play_half_widths) and self.play_half_widths[i] is not None
+            from_section = bool(self.starts_from_sections) and self.starts_from_sections[i]
             valves[name] = {
                 "starting_current": valve_map.starting_current,
                 "starting_current_from": (
@@ -127,7 +133,7 @@ class HammersteinFit:
                     if self.start_intervals
                     else "the joint search"
                 ),
-                "play_half_width": self.play_half_widths[i] if from_section else None,
+                "play_half_width": self.play_half_widths[i] if self.play_half_widths else None,
                 "starting_current_spread": list(spread[i]),
                 "highest_current_in_record": self.highest_currents[i],
                 "saturation_current": valve_map.saturation_current,
@@ -244,8 +250,15 @@ def estimate_hammerstein(
     )
     intervals = () if curves is None else tuple(map(tuple, curves.start_intervals.tolist()))
     play = () if curves is None else curves.play_half_widths
+    from_sections = () if curves is None else curves.from_sections
+    seen = () if curves is None else tuple(tuple(c.tolist()) for c in curves.settled_currents)
     return dataclasses.replace(
-        fit, searches=searches, start_intervals=intervals, play_half_widths=play
+        fit,
+        searches=searches,
+        start_intervals=intervals,
+        play_half_widths=play,
+        starts_from_sections=from_sections,
+        settled_currents=seen,
     )
 
 

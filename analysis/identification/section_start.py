@@ -39,8 +39,7 @@ from maskless.analysis.identification.profile_interval import CHI2_95, profile_i
 MIN_SECTION_LEVELS = 6
 # The play's half-width grid, as fractions of the valve's range: up to the datasheet's 10 %
 # hysteresis (a half-width of 5 %), in steps of a quarter of a percent.
-_MAX_HALF_WIDTH = 0.05
-_HALF_WIDTH_STEP = 0.0025
+PLAY_HALF_WIDTHS = np.arange(0.0, 0.05 + 1e-12, 0.0025)
 # The starts' grid step, as a fraction of the range (``settled_curve``'s refined step).
 _START_STEP = 1.0 / 400.0
 
@@ -120,9 +119,9 @@ def section_start(
         max_start: the highest start allowed, as a fraction of the range.
     """
     y = outputs[mask] - outputs[mask].mean()
-    half_widths = np.arange(0.0, _MAX_HALF_WIDTH + 1e-12, _HALF_WIDTH_STEP)
+    half_widths = PLAY_HALF_WIDTHS
     levels = hold_currents[level_holds[mask]]
-    lowest = max(levels.min() - _MAX_HALF_WIDTH, 0.0)
+    lowest = max(levels.min() - PLAY_HALF_WIDTHS[-1], 0.0)
     starts = np.arange(lowest, min(levels.max(), max_start) + 1e-12, _START_STEP)
     # (half-widths, starts) residual sum of squares of the best hinge.
     sse = np.empty((half_widths.size, starts.size))

@@ -30,10 +30,11 @@ Two arrangements:
 (``valve_pair_excitation``) never applies a current between 0 and a valve's starting current,
 where the map's flat part is, so this design draws its own: continuous levels.
 
-**Targeted levels** (``targeted_level_currents``): each valve in turn held inside an interval of
-starting currents, approached alternately from below and from above, so its hysteresis averages
-out; ``diagrams.valve_level_experiment.run_sequential_experiment`` designs part of a record with
-them from the record before it (why, there).
+**Targeted levels** (``targeted_level_currents``): the valves held inside intervals of starting
+currents (the one placed worse more often), approached alternately from below and from above, so
+the hysteresis averages out, and over the stretches of the curves no settled level has shown;
+``diagrams.valve_level_experiment.run_sequential_experiment`` designs part of a record with them
+from the record before it (why, there).
 """
 
 import numpy as np
@@ -46,6 +47,8 @@ ARRANGEMENTS = ("split_range", "independent")
 TOP_CURRENT_A = 0.190
 # Equal parts of a valve's range that each block of its levels visits once (``_stratified``).
 _STRATA = 8
+# The least share of the holds inside the intervals each valve gets (``_width_share``).
+MIN_TURN_SHARE = 0.2
 
 
 def random_level_currents(
@@ -96,16 +99,18 @@ def random_level_currents(
     return np.repeat(levels, holds, axis=0)[:samples].T
 
 
-def _stratified(rng, count: int) -> np.ndarray:
+def _stratified(rng, count: int, strata: int = _STRATA) -> np.ndarray:
     """``count`` fractions of the range, uniform, in blocks that each visit every stratum once.
 
-    Each block of ``_STRATA`` levels is one uniform draw from each of ``_STRATA`` equal parts of
+    Each block of ``strata`` levels is one uniform draw from each of ``strata`` equal parts of
     the range, in random order: i.i.d. levels leave gaps (a dozen settled levels of a valve can
     miss a fifth of its range), and a gap is where the static curve is only guessed.
     """
-    blocks = -(-count // _STRATA)
-    order = np.concatenate([rng.permutation(_STRATA) for _ in range(blocks)])[:count]
-    return (order + rng.uniform(0.0, 1.0, size=count)) / _STRATA
+    blocks = -(-count // strata)
+    if blocks == 0:
+        return np.zeros(0)
+    order = np.concatenate([rng.permutation(strata) for _ in range(blocks)])[:count]
+    return (order + rng.uniform(0.0, 1.0, size=count)) / strata
 
 
 def targeted_level_currents(
@@ -117,19 +122,23 @@ def targeted_level_currents(
     seed: int,
     coverage_share: float = 0.0,
     other_valve_currents_a: tuple[float, float] = (0.0, 0.0),
+    settled_currents_a: tuple = ((), ()),
 ) -> np.ndarray:
-    """(2, samples) currents (A): each valve in turn held inside its starting current's interval.
+    """(2, samples) currents (A): the valves' holds inside their starting currents' intervals.
 
-    The inlet and the outlet take turns (the other shut, as in ``split_range``, or held at
-    ``other_valve_currents_a``), each hold ``hold_s`` long at a level drawn stratified over its
-    valve's interval (``_stratified``); with ``coverage_share``, that share of each valve's holds
-    (spread evenly among the others) is drawn stratified over the rest of its curve instead, from
-    the interval's top to the valve's top current, so a record whose random part is cut short
-    still settles there. Within each of those two kinds, a valve's holds alternate between
-    approached from below (it was shut during the other's hold, or its hold's first sample shuts
-    it) and from above (the hold's first sample at the valve's top current, which pushes the
-    spool past any play band the datasheet allows, then the level), so half its levels rest at
-    each edge of the band.
+    Each hold is ``hold_s`` long and drives one valve, the other shut (as in ``split_range``) or
+    held at ``other_valve_currents_a``. Of the holds inside the intervals, each valve gets a
+    share as wide as its interval (``_width_share``: the start the record so far places worse
+    gets more), and its levels one in each of as many equal parts of its interval (a round's few
+    levels still span it). With ``coverage_share``, that share of the holds (spread evenly
+    among the others) goes over the rest of the curves instead, from an interval's top to its
+    valve's top current, with the other valve shut: each in the middle of the widest stretch no
+    settled level has shown yet, of either valve (``_gap_filling``), so a record whose random
+    part is cut short still shows its curves whole. Within each of those two kinds, a valve's
+    holds alternate between approached from below (shut before the level: its hold's first
+    sample shuts it if it was open) and from above (the hold's first sample at the valve's top
+    current, which pushes the spool past any play band the datasheet allows, then the level),
+    so half its levels rest at each edge of the band.
 
     Args:
         samples: the stretch's length.
@@ -147,6 +156,9 @@ def targeted_level_currents(
             start several times more sharply on top of the other valve held open: the same
             opening then passes more air. Those levels form a section of the plant's steady
             output at one current of the other valve (``settled_curve``).
+        settled_currents_a: per valve, the currents (A) at which the record so far settled
+            with it alone open (``HammersteinFit.settled_currents``): the holds over the rest
+            of the curves go between them.
 
     Raises:
         ValueError: naming the argument out of range.
@@ -156,6 +168,10 @@ def targeted_level_currents(
     if not 0.0 <= coverage_share <= 1.0:
         raise ValueError(f"coverage_share = {coverage_share!r}: expected 0 to 1")
     tops, intervals = _checked_ranges(top_currents_a, start_intervals_a)
+    if len(settled_currents_a) != 2:
+        raise ValueError(
+            f"settled_currents_a = {settled_currents_a}: expected the currents seen per valve"
+        )
     others = np.asarray(other_valve_currents_a, dtype=float)
     if others.shape != (2,) or not np.all((others >= 0.0) & (others <= tops[::-1])):
         raise ValueError(
@@ -165,34 +181,90 @@ def targeted_level_currents(
     # At least two samples: the approach from above and the level.
     hold = max(hold_samples((hold_s, hold_s), sample_period_s)[0], 2)
     rng = np.random.default_rng(seed)
-    per_valve = -(-samples // (2 * hold))
-    order = np.arange(per_valve)
+    count = -(-samples // hold)
+    order = np.arange(count)
     covering = np.floor((order + 1) * coverage_share) - np.floor(order * coverage_share) == 1
-    levels = np.zeros((2, per_valve))
+    turns = np.empty(count, dtype=int)
+    levels = np.zeros(count)
+    turns[covering], levels[covering] = _gap_filling(
+        settled_currents_a, intervals[:, 1], tops, int(covering.sum())
+    )
+    # The start the record so far places worse gets more of the holds inside the intervals.
+    turns[~covering] = _interleaved(int((~covering).sum()), _width_share(intervals, tops))
+    rank = np.zeros(count, dtype=int)
     for valve, (low, high) in enumerate(intervals):
-        levels[valve, ~covering] = low + (high - low) * _stratified(rng, int((~covering).sum()))
-    # Each kind of hold alternates its approach on its own, so both kinds see both edges.
-    rank = np.where(covering, np.cumsum(covering), np.cumsum(~covering)) - 1
+        inside = np.flatnonzero((turns == valve) & ~covering)
+        # As many strata as levels: a round's few levels spread over the whole interval.
+        levels[inside] = low + (high - low) * _stratified(rng, inside.size, max(inside.size, 1))
+        above = np.flatnonzero((turns == valve) & covering)
+        # Each kind of hold alternates its approach on its own, so both kinds see both edges.
+        rank[inside], rank[above] = np.arange(inside.size), np.arange(above.size)
     from_above = (rank + rng.integers(2)) % 2 == 1
-    if covering.any():
-        for valve, (high, top) in enumerate(zip(intervals[:, 1], tops, strict=True)):
-            levels[valve, covering] = high + (top - high) * _stratified(rng, int(covering.sum()))
-    return _turns(levels, covering, from_above, tops, others, hold)[:, :samples]
+    return _turns(turns, levels, covering, from_above, tops, others, hold)[:, :samples]
 
 
-def _turns(levels, covering, from_above, tops, others, hold) -> np.ndarray:
-    """(2, 2 * holds * hold) the valves' holds in turn, each approached as ``from_above`` says."""
-    currents = np.zeros((2, 2 * levels.shape[1] * hold))
-    for k in range(levels.shape[1]):
-        for valve in (0, 1):
-            begin = (2 * k + valve) * hold
-            currents[valve, begin : begin + hold] = levels[valve, k]
-            if not covering[k]:
-                currents[1 - valve, begin : begin + hold] = others[valve]
-            if from_above[k]:
-                currents[valve, begin] = tops[valve]
-            elif others[1 - valve] > 0.0:  # held open during the other's hold: shut it first
-                currents[valve, begin] = 0.0
+def _width_share(intervals: np.ndarray, tops: np.ndarray) -> float:
+    """The inlet's share of the holds inside the intervals: its interval's width over both.
+
+    Widths as fractions of each valve's range, the share within ``MIN_TURN_SHARE`` and one minus
+    it (a half when neither interval has a width).
+    """
+    widths = (intervals[:, 1] - intervals[:, 0]) / tops
+    share = 0.5 if widths.sum() <= 0.0 else widths[0] / widths.sum()
+    return float(np.clip(share, MIN_TURN_SHARE, 1.0 - MIN_TURN_SHARE))
+
+
+def _interleaved(count: int, inlet_share: float) -> np.ndarray:
+    """(count,) 0 (inlet) or 1 (outlet) per turn, each to the valve furthest behind its share."""
+    shares = np.array([inlet_share, 1.0 - inlet_share])
+    turns = np.empty(count, dtype=int)
+    given = np.zeros(2)
+    for k in range(count):
+        # Ties go to the inlet: the same turns on every run.
+        turns[k] = int(np.argmax(shares * (k + 1) - given))
+        given[turns[k]] += 1
+    return turns
+
+
+def _gap_filling(settled, lows, tops, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """(valves, currents) of ``count`` holds, each in the middle of the widest gap left.
+
+    A valve's gaps are those between ``lows``, ``tops`` and the currents ``settled`` so far
+    between them (its curve's stretches no settled level has shown); the widest of both valves,
+    as fractions of each one's top current, gets the next hold.
+    """
+    points = [
+        sorted({low, top, *(c for c in np.asarray(seen, float) if low < c < top)})
+        for seen, low, top in zip(settled, lows, tops, strict=True)
+    ]
+    valves, currents = np.zeros(count, dtype=int), np.zeros(count)
+    for k in range(count):
+        widths = [np.diff(p) / top for p, top in zip(points, tops, strict=True)]
+        # Ties go to the inlet: the same holds on every run.
+        valves[k] = int(np.argmax([w.max() for w in widths]))
+        widest = int(np.argmax(widths[valves[k]]))
+        near = points[valves[k]]
+        currents[k] = 0.5 * (near[widest] + near[widest + 1])
+        near.insert(widest + 1, currents[k])
+    return valves, currents
+
+
+def _turns(turns, levels, covering, from_above, tops, others, hold) -> np.ndarray:
+    """(2, holds * hold) each hold's valve at its level, approached as ``from_above`` says.
+
+    From below, a valve left open before (its own hold, or held open during the other's) is
+    shut for the hold's first sample.
+    """
+    currents = np.zeros((2, turns.size * hold))
+    for k, valve in enumerate(turns):
+        begin = k * hold
+        currents[valve, begin : begin + hold] = levels[k]
+        if not covering[k]:
+            currents[1 - valve, begin : begin + hold] = others[valve]
+        if from_above[k]:
+            currents[valve, begin] = tops[valve]
+        elif begin == 0 or currents[valve, begin - 1] > 0.0:
+            currents[valve, begin] = 0.0
     return currents
 
 

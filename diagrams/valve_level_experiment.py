@@ -48,9 +48,11 @@ def run_sequential_experiment(
     """``run_two_valve_experiment`` with samples ``targeted`` designed from the record before them.
 
     The stretch is cut into ``rounds`` equal parts; before each, the plant runs the currents up
-    to it, ``start_intervals_of(currents (N, 2) as applied in A, fused height (N,) in m)`` gives
-    each valve's starting-current interval (2, 2) in A, and the part gets
-    ``targeted_level_currents`` inside it (clipped to [0, top]; seeded ``seed`` plus the round).
+    to it, ``reading_of(currents (N, 2) as applied in A, fused height (N,) in m)`` gives each
+    valve's starting-current interval ((2, 2) in A) and the currents (A) at which its settled
+    holds showed its curve alone (``HammersteinFit.settled_currents``), and the part gets
+    ``targeted_level_currents`` from them (the intervals clipped to [0, top]; seeded ``seed``
+    plus the round).
     Then the whole record runs once more. The same scenario and seed make every run's first
     samples the same, so the design read nothing the returned record does not hold; a run whose
     first samples differ raises RuntimeError.

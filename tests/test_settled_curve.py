@@ -8,7 +8,7 @@ by its own code with holds long enough to settle.
 import numpy as np
 import pytest
 
-from maskless.analysis.identification import section_start
+from maskless.analysis.identification import section_start, settled_curve
 from maskless.analysis.identification.hammerstein import estimate_hammerstein
 from maskless.analysis.identification.settled_curve import (
     SettledLevels,
@@ -113,7 +113,8 @@ def test_a_valve_held_at_one_level_has_no_curve():
     assert fit_static_curves(levels, 0.95, 1.5) is None
 
 
-def test_with_settled_holds_the_hammerstein_fit_finds_the_planted_curves_and_poles():
+def _planted_hammerstein_record():
+    """(the planted model, currents (N, 2) in A, its noisy output (N,) in m)."""
     planted = HammersteinModel(
         maps=tuple(_planted_map(*curve) for curve in PLANTED_CURVES),
         a=[np.poly([0.95, 0.8])[1:]] * 2,
@@ -129,7 +130,46 @@ def test_with_settled_holds_the_hammerstein_fit_finds_the_planted_curves_and_pol
     # valve a dozen settled levels across its range.
     u = random_level_currents(24000, TS, (0.19, 0.19), (10.0, 40.0), 2).T
     rng = np.random.default_rng(2)
-    y = planted.simulate(u) + 1e-4 * rng.standard_normal(u.shape[0])
+    return planted, u, planted.simulate(u) + 1e-4 * rng.standard_normal(u.shape[0])
+
+
+def test_a_fit_that_finds_no_play_is_the_fit_without_the_play_sweeps(monkeypatch):
+    # The planted valves have no play. Two more sweeps from the fit without it move its ends
+    # (more sweeps fit better), so keeping them would change the fit a record shows no play in.
+    _, u, y = _planted_hammerstein_record()
+    levels = settled_levels(u, y, 254, 31)  # as the Hammerstein fit settles them (pole 0.984)
+    with_sweeps = fit_static_curves(levels, 0.95, 1.5)
+    assert with_sweeps.play_half_widths == (0.0, 0.0)
+    monkeypatch.setattr(settled_curve, "_PLAY_SWEEPS", 0)
+    without = fit_static_curves(levels, 0.95, 1.5)
+    np.testing.assert_array_equal(with_sweeps.starts, without.starts)
+    np.testing.assert_array_equal(with_sweeps.increments, without.increments)
+
+
+def test_the_play_sweeps_never_end_worse_than_the_fit_without_them(monkeypatch):
+    fits = {}
+    for sweeps in (2, 0):
+        monkeypatch.setattr(settled_curve, "_PLAY_SWEEPS", sweeps)
+        fits[sweeps] = [
+            fit_static_curves(_levels_through_play(seed, 0.0026), 0.95, 1.5) for seed in (1, 2, 3)
+        ]
+    for played, plain in zip(fits[2], fits[0], strict=True):
+        assert max(played.play_half_widths) > 0.0
+        assert played.residual_rms < plain.residual_rms
+
+
+def test_settled_currents_are_where_each_valve_alone_was_open():
+    currents = np.array(
+        [[0.0, 0.0], [0.08, 0.0], [0.0, 0.1], [0.12, 0.0], [0.1, 0.15], [0.0, 0.19]]
+    )
+    levels = SettledLevels(currents, np.arange(6.0), np.ones(6))
+    found = fit_static_curves(levels, 0.95, 1.5)
+    np.testing.assert_array_equal(found.settled_currents[0], [0.08, 0.12])
+    np.testing.assert_array_equal(found.settled_currents[1], [0.1, 0.19])
+
+
+def test_with_settled_holds_the_hammerstein_fit_finds_the_planted_curves_and_poles():
+    planted, u, y = _planted_hammerstein_record()
     fit = estimate_hammerstein(u, y, 2, TS, input_unit="A", output_unit="m")
     assert fit.converged, fit.message
     model = fit.model

@@ -182,6 +182,20 @@ def test_holds_over_the_rest_of_the_curve_fill_its_widest_gaps():
     np.testing.assert_allclose(np.sort(covering), np.sort(expected))
 
 
+def test_an_interval_reaching_the_top_current_leaves_that_valve_no_gap():
+    tops = np.array(TOPS)
+    # The inlet's interval reaches its top: the holds go to the outlet's gaps.
+    valves, currents = _gap_filling(((), ()), np.array([TOPS[0], 0.10]), tops, 3)
+    np.testing.assert_array_equal(valves, 1)
+    np.testing.assert_allclose(currents, [0.14, 0.12, 0.16])
+    # Neither has a gap: the holds sit at the inlet's top current, the curve's flat end.
+    valves, currents = _gap_filling(((), ()), tops, tops, 2)
+    np.testing.assert_array_equal(valves, 0)
+    np.testing.assert_array_equal(currents, TOPS[0])
+    stretch = targeted_level_currents(600, TS, TOPS, ((0.05, TOPS[0]), (0.03, 0.1)), 6.0, 0, 0.5)
+    assert stretch.shape == (2, 600)
+
+
 def test_other_valve_currents_hold_the_other_valve_open_and_keep_both_approaches():
     other = 0.15
     currents = targeted_level_currents(8000, TS, TOPS, INTERVALS, 6.0, 0, 0.0, (0.0, other))
@@ -227,6 +241,7 @@ def test_targeted_levels_are_seeded():
         ({"other_valve_currents_a": (0.185, 0.0)}, "other_valve_currents_a"),
         ({"other_valve_currents_a": (-0.01, 0.0)}, "other_valve_currents_a"),
         ({"settled_currents_a": ((0.1,),)}, "settled_currents_a"),
+        ({"settled_currents_a": (0.1, 0.12)}, "settled_currents_a"),
     ],
 )
 def test_bad_targeted_arguments_name_the_argument(arguments, message):

@@ -29,11 +29,13 @@ Choices, and why:
   squares drops. Profiled from the first sweep instead, before the curves had settled, the fit
   found 4.6 mA of play on a planted record without any and put the inlet's start 3.9 mA low; from
   the fit without play it finds none there (nor on 20 planted records of level noise). A fit that
-  finds no play is the fit without it, bit for bit. Unmodelled, the pneumatic plant's 2.6 mA
-  of play scatters the inlet's steep middle (about 0.3 mm per mA) by some 0.8 mm, and the
-  quadratic bends to it: on a record with few levels near the start (seed 1 of the benchmark's
-  sequential design) the inlet's start read 83.6 mA without the play and 58.4 mA with it, the
-  plant's being 60.
+  finds no play is the fit without it, bit for bit, except that a valve whose start a section
+  found has its levels placed with that section's play from the first sweep. Unmodelled, the
+  pneumatic plant's 2.6 mA of play scatters the inlet's steep middle (about 0.3 mm per mA) by
+  some 0.8 mm, and the quadratic bends to it: on a record with few levels near the start (seed 1
+  of the benchmark's sequential design) the inlet's start read 83.6 mA without the play and
+  58.4 mA with it, the plant's being 60. The starts' intervals (below) hold each play at its
+  best, so they are narrower than what the record leaves open.
 - **What the levels cannot tell apart is reported**: each starting current's 95 % profile
   interval, the starts whose best fit raises the sum of squares by at most chi2(1, 0.95) = 3.84
   residual variances over the best (a likelihood-ratio interval for Gaussian errors).
@@ -297,7 +299,8 @@ def _sweeps(spool, y, fixed, limits, plays, ends, signs, read_play):
     x = np.column_stack([spool(i, plays[i]) for i in range(len(plays))])
     for _ in range(_PLAY_SWEEPS if read_play else _SWEEPS):
         for i in range(len(plays)):
-            held = [_basis(x[:, j], *ends[j]) * signs[j] for j in range(len(plays)) if j != i]
+            columns = _columns(x, ends, signs)
+            held = columns[:i] + columns[i + 1 :]
             incumbent = None
             if read_play:
                 incumbent = (ends[i], signs[i])
@@ -321,7 +324,7 @@ def _best_play(spool_of, y, held, curve, play) -> float:
     """
     (ends, sign), best = curve, play
     lowest, _ = _nonnegative_fit([*held, sign * _basis(spool_of(play), *ends)], y)
-    for half_width in PLAY_HALF_WIDTHS:
+    for half_width in PLAY_HALF_WIDTHS[PLAY_HALF_WIDTHS != play]:
         sse, _ = _nonnegative_fit([*held, sign * _basis(spool_of(half_width), *ends)], y)
         if sse < lowest:
             lowest, best = sse, float(half_width)

@@ -136,7 +136,8 @@ def targeted_level_currents(
     settled level has shown yet, of either valve (``_gap_filling``), so a record whose random
     part is cut short still shows its curves whole. Within each of those two kinds, a valve's
     holds alternate between approached from below (shut before the level: its hold's first
-    sample shuts it if it was open) and from above (the hold's first sample at the valve's top
+    sample shuts it if it was open, and at the stretch's start, where the design does not see
+    what came before) and from above (the hold's first sample at the valve's top
     current, which pushes the spool past any play band the datasheet allows, then the level),
     so half its levels rest at each edge of the band.
 
@@ -168,9 +169,10 @@ def targeted_level_currents(
     if not 0.0 <= coverage_share <= 1.0:
         raise ValueError(f"coverage_share = {coverage_share!r}: expected 0 to 1")
     tops, intervals = _checked_ranges(top_currents_a, start_intervals_a)
-    if len(settled_currents_a) != 2:
+    if len(settled_currents_a) != 2 or any(np.ndim(seen) != 1 for seen in settled_currents_a):
         raise ValueError(
-            f"settled_currents_a = {settled_currents_a}: expected the currents seen per valve"
+            f"settled_currents_a = {settled_currents_a}: expected a sequence of currents (A) "
+            "per valve"
         )
     others = np.asarray(other_valve_currents_a, dtype=float)
     if others.shape != (2,) or not np.all((others >= 0.0) & (others <= tops[::-1])):
@@ -226,24 +228,29 @@ def _interleaved(count: int, inlet_share: float) -> np.ndarray:
     return turns
 
 
-def _gap_filling(settled, lows, tops, count: int) -> tuple[np.ndarray, np.ndarray]:
+def _gap_filling(settled, interval_tops, tops, count: int) -> tuple[np.ndarray, np.ndarray]:
     """(valves, currents) of ``count`` holds, each in the middle of the widest gap left.
 
-    A valve's gaps are those between ``lows``, ``tops`` and the currents ``settled`` so far
-    between them (its curve's stretches no settled level has shown); the widest of both valves,
-    as fractions of each one's top current, gets the next hold.
+    A valve's gaps are those between its ``interval_tops``, its ``tops`` and the currents
+    ``settled`` so far between them (its curve's stretches no settled level has shown); the
+    widest of both valves, as fractions of each one's top current, gets the next hold. A valve
+    whose interval reaches its top current has no gap; when neither has one, the hold is at the
+    top current (the curve's flat end).
     """
     points = [
         sorted({low, top, *(c for c in np.asarray(seen, float) if low < c < top)})
-        for seen, low, top in zip(settled, lows, tops, strict=True)
+        for seen, low, top in zip(settled, interval_tops, tops, strict=True)
     ]
     valves, currents = np.zeros(count, dtype=int), np.zeros(count)
     for k in range(count):
-        widths = [np.diff(p) / top for p, top in zip(points, tops, strict=True)]
+        gaps = [np.diff(p) / top for p, top in zip(points, tops, strict=True)]
         # Ties go to the inlet: the same holds on every run.
-        valves[k] = int(np.argmax([w.max() for w in widths]))
-        widest = int(np.argmax(widths[valves[k]]))
+        valves[k] = int(np.argmax([g.max() if g.size else 0.0 for g in gaps]))
         near = points[valves[k]]
+        if not gaps[valves[k]].size:
+            currents[k] = near[-1]
+            continue
+        widest = int(np.argmax(gaps[valves[k]]))
         currents[k] = 0.5 * (near[widest] + near[widest + 1])
         near.insert(widest + 1, currents[k])
     return valves, currents
@@ -252,8 +259,8 @@ def _gap_filling(settled, lows, tops, count: int) -> tuple[np.ndarray, np.ndarra
 def _turns(turns, levels, covering, from_above, tops, others, hold) -> np.ndarray:
     """(2, holds * hold) each hold's valve at its level, approached as ``from_above`` says.
 
-    From below, a valve left open before (its own hold, or held open during the other's) is
-    shut for the hold's first sample.
+    From below, a valve left open before (its own hold, or held open during the other's), or at
+    the stretch's first hold, is shut for the hold's first sample.
     """
     currents = np.zeros((2, turns.size * hold))
     for k, valve in enumerate(turns):

@@ -248,17 +248,15 @@ def estimate_hammerstein(
         )
         for end in ends
     )
-    intervals = () if curves is None else tuple(map(tuple, curves.start_intervals.tolist()))
-    play = () if curves is None else curves.play_half_widths
-    from_sections = () if curves is None else curves.from_sections
-    seen = () if curves is None else tuple(tuple(c.tolist()) for c in curves.settled_currents)
+    fit = dataclasses.replace(fit, searches=searches)
+    if curves is None:
+        return fit
     return dataclasses.replace(
         fit,
-        searches=searches,
-        start_intervals=intervals,
-        play_half_widths=play,
-        starts_from_sections=from_sections,
-        settled_currents=seen,
+        start_intervals=tuple(map(tuple, curves.start_intervals.tolist())),
+        play_half_widths=curves.play_half_widths,
+        starts_from_sections=curves.from_sections,
+        settled_currents=tuple(tuple(c.tolist()) for c in curves.settled_currents),
     )
 
 

@@ -199,16 +199,18 @@ def fit_static_curves(
     if any(np.unique(u[:, i]).size < 2 for i in range(inputs)):
         return None
     low, span = u.min(axis=0), np.ptp(u, axis=0)
+    # Every hold's currents as fractions of each input's range: the play runs over them all.
+    holds, level_holds = levels.holds_in_order()
+    fractions = (holds - low) / span
     sections, in_sections = {}, np.zeros(y.size, dtype=bool)
     if read_sections:
-        sections, in_sections = _section_starts(levels, low, span, max_start)
+        sections, in_sections = _section_starts(levels, fractions, level_holds, max_start)
     u, y = u[~in_sections], y[~in_sections]
-    holds, level_holds = levels.holds_in_order()
     level_holds = level_holds[~in_sections]
 
     def spool(i, half_width):
         """Where input i's spool rests at each level (fractions of the range)."""
-        return play_operator((holds[:, i] - low[i]) / span[i], half_width)[level_holds]
+        return play_operator(fractions[:, i], half_width)[level_holds]
 
     fixed = [sections[i].start if i in sections else None for i in range(inputs)]
     limits = (max_start, max_saturation)
@@ -261,11 +263,13 @@ def fit_static_curves(
     )
 
 
-def _section_starts(levels: SettledLevels, low, span, max_start):
+def _section_starts(levels: SettledLevels, fractions, level_holds, max_start):
     """({valve: its ``SectionStart``}, (M,) the levels in any section), fractions of the range.
 
-    None found where the levels outside the sections would leave some valve fewer than two
-    distinct currents or the curves fewer than twice their parameters: they then stay in the fit.
+    ``fractions`` (H, inputs) are every hold's currents as fractions of each input's range and
+    ``level_holds`` (M,) the hold each level ends. None found where the levels outside the
+    sections would leave some valve fewer than two distinct currents or the curves fewer than
+    twice their parameters: they then stay in the fit.
     """
     masks = find_sections(levels.currents)
     in_sections = np.zeros(levels.outputs.size, dtype=bool)
@@ -273,15 +277,8 @@ def _section_starts(levels: SettledLevels, low, span, max_start):
         in_sections |= mask
     if not masks or not enough_levels(levels.currents[~in_sections]):
         return {}, np.zeros(levels.outputs.size, dtype=bool)
-    holds, level_holds = levels.holds_in_order()
     found = {
-        valve: section_start(
-            (holds[:, valve] - low[valve]) / span[valve],
-            level_holds,
-            levels.outputs,
-            mask,
-            max_start,
-        )
+        valve: section_start(fractions[:, valve], level_holds, levels.outputs, mask, max_start)
         for valve, mask in masks.items()
     }
     return found, in_sections

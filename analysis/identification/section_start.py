@@ -119,13 +119,12 @@ def section_start(
         max_start: the highest start allowed, as a fraction of the range.
     """
     y = outputs[mask] - outputs[mask].mean()
-    half_widths = PLAY_HALF_WIDTHS
     levels = hold_currents[level_holds[mask]]
     lowest = max(levels.min() - PLAY_HALF_WIDTHS[-1], 0.0)
     starts = np.arange(lowest, min(levels.max(), max_start) + 1e-12, _START_STEP)
     # (half-widths, starts) residual sum of squares of the best hinge.
-    sse = np.empty((half_widths.size, starts.size))
-    for row, half_width in enumerate(half_widths):
+    sse = np.empty((PLAY_HALF_WIDTHS.size, starts.size))
+    for row, half_width in enumerate(PLAY_HALF_WIDTHS):
         spool = play_operator(hold_currents, half_width)[level_holds[mask]]
         hinge = np.maximum(spool[:, None] - starts[None, :], 0.0)
         hinge -= hinge.mean(axis=0)
@@ -148,5 +147,5 @@ def section_start(
     return SectionStart(
         start=float(starts[column]),
         interval=(low, min(high, max_start)),
-        play_half_width=float(half_widths[row]),
+        play_half_width=float(PLAY_HALF_WIDTHS[row]),
     )

@@ -219,15 +219,14 @@ def fit_static_curves(
     plays, ends, signs, x = _sweeps(
         spool, y, fixed, limits, plays, [(0.0, 1.0)] * inputs, [1.0] * inputs, False
     )
-    sse, coefficients = _nonnegative_fit(_columns(x, ends, signs), y)
     if None in fixed:
         # Then each valve's play too, from there; kept where some valve's play is not zero (the
         # sweeps never end worse than they began), else the fit is the one without it.
         played = _sweeps(spool, y, fixed, limits, plays, ends, signs, True)
         if played[0] != plays:
             plays, ends, signs, x = played
-            sse, coefficients = _nonnegative_fit(_columns(x, ends, signs), y)
     columns = _columns(x, ends, signs)
+    sse, coefficients = _nonnegative_fit(columns, y)
     variance = sse / max(1, y.size - parameter_count(inputs))
     intervals = [
         sections[i].interval

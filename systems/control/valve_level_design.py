@@ -106,9 +106,9 @@ def _stratified(rng, count: int, strata: int = _STRATA) -> np.ndarray:
     the range, in random order: i.i.d. levels leave gaps (a dozen settled levels of a valve can
     miss a fifth of its range), and a gap is where the static curve is only guessed.
     """
-    blocks = -(-count // strata)
-    if blocks == 0:
+    if count == 0:
         return np.zeros(0)
+    blocks = -(-count // strata)
     order = np.concatenate([rng.permutation(strata) for _ in range(blocks)])[:count]
     return (order + rng.uniform(0.0, 1.0, size=count)) / strata
 
@@ -197,7 +197,7 @@ def targeted_level_currents(
     for valve, (low, high) in enumerate(intervals):
         inside = np.flatnonzero((turns == valve) & ~covering)
         # As many strata as levels: a round's few levels spread over the whole interval.
-        levels[inside] = low + (high - low) * _stratified(rng, inside.size, max(inside.size, 1))
+        levels[inside] = low + (high - low) * _stratified(rng, inside.size, inside.size)
         above = np.flatnonzero((turns == valve) & covering)
         # Each kind of hold alternates its approach on its own, so both kinds see both edges.
         rank[inside], rank[above] = np.arange(inside.size), np.arange(above.size)

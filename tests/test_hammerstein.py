@@ -155,6 +155,37 @@ def test_a_search_that_raises_returns_its_start_named_as_failed(monkeypatch):
     assert fit.simulation_fit_percent == fit.start_fit_percent
 
 
+def test_a_search_stopped_where_a_reflection_saturates_is_searched_again_by_trust_region(
+    monkeypatch,
+):
+    # Levenberg-Marquardt ends with A(q)'s second reflection coefficient at tanh(-25) = -1 (the
+    # poles at +-r: it stopped where tanh is flat); the trust-region search from the same start
+    # ends lower and is kept. An end with no reflection saturated is not searched again.
+    real = scipy.optimize.least_squares
+    methods = []
+
+    def recording(fun, x0, **kwargs):
+        methods.append(kwargs["method"])
+        found = real(fun, x0, **kwargs)
+        if kwargs["method"] == "lm" and len(methods) == 1:
+            stuck = found.x.copy()
+            stuck[:2] = [3.5, -25.0]
+            return scipy.optimize.OptimizeResult(
+                x=stuck, cost=found.cost * 2.0, status=2, nfev=5, message="stuck"
+            )
+        return found
+
+    monkeypatch.setattr(scipy.optimize, "least_squares", recording)
+    u, y = _planted_record(1000)
+    fit = estimate_hammerstein(u, y, 2, TS)
+    assert methods[:2] == ["lm", "trf"]
+    # The planted poles (0.95, 0.8), not the stuck end's +-r.
+    np.testing.assert_allclose(
+        np.sort(np.roots(np.r_[1.0, fit.model.a[0]])), [0.8, 0.95], atol=0.02
+    )
+    assert methods.count("trf") == 1
+
+
 @pytest.mark.parametrize(
     "change, message",
     [

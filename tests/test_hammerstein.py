@@ -155,17 +155,21 @@ def test_a_search_that_raises_returns_its_start_named_as_failed(monkeypatch):
     assert fit.simulation_fit_percent == fit.start_fit_percent
 
 
+@pytest.mark.parametrize("trust_region", ["ends lower", "raises"])
 def test_a_search_stopped_where_a_reflection_saturates_is_searched_again_by_trust_region(
-    monkeypatch,
+    trust_region, monkeypatch
 ):
     # Levenberg-Marquardt ends with A(q)'s second reflection coefficient at tanh(-25) = -1 (the
     # poles at +-r: it stopped where tanh is flat); the trust-region search from the same start
-    # ends lower and is kept. An end with no reflection saturated is not searched again.
+    # ends lower and is kept. Should it raise, the stuck end still counts as a search's end. An
+    # end with no reflection saturated is not searched again.
     real = scipy.optimize.least_squares
     methods = []
 
     def recording(fun, x0, **kwargs):
         methods.append(kwargs["method"])
+        if kwargs["method"] == "trf" and trust_region == "raises":
+            raise ValueError("Residuals are not finite in the initial point.")
         found = real(fun, x0, **kwargs)
         if kwargs["method"] == "lm" and len(methods) == 1:
             stuck = found.x.copy()
@@ -178,12 +182,11 @@ def test_a_search_stopped_where_a_reflection_saturates_is_searched_again_by_trus
     monkeypatch.setattr(scipy.optimize, "least_squares", recording)
     u, y = _planted_record(1000)
     fit = estimate_hammerstein(u, y, 2, TS)
-    assert methods[:2] == ["lm", "trf"]
+    assert methods[:2] == ["lm", "trf"] and methods.count("trf") == 1
+    assert len(fit.searches) == methods.count("lm")  # every start ended somewhere
     # The planted poles (0.95, 0.8), not the stuck end's +-r.
-    np.testing.assert_allclose(
-        np.sort(np.roots(np.r_[1.0, fit.model.a[0]])), [0.8, 0.95], atol=0.02
-    )
-    assert methods.count("trf") == 1
+    poles = np.sort(np.roots(np.r_[1.0, fit.model.a[0]]))
+    np.testing.assert_allclose(poles, [0.8, 0.95], atol=0.02)
 
 
 @pytest.mark.parametrize(

@@ -277,10 +277,13 @@ def _search(problem: HammersteinProblem, guess, max_evaluations: int):
     )
     if np.all(np.abs(np.tanh(found.x[: problem.order])) < _SATURATED_REFLECTION):
         return found
-    other = scipy.optimize.least_squares(
-        problem.residuals, guess, method="trf", x_scale="jac", max_nfev=max_evaluations
-    )
-    return other if other.cost < found.cost else found
+    try:
+        other = scipy.optimize.least_squares(
+            problem.residuals, guess, method="trf", x_scale="jac", max_nfev=max_evaluations
+        )
+    except (ValueError, np.linalg.LinAlgError, FloatingPointError):
+        return found  # the end Levenberg-Marquardt reached stands
+    return other if np.isfinite(other.cost) and other.cost < found.cost else found
 
 
 def estimate_linear_arx(

@@ -1,8 +1,8 @@
 """The static curves' grid search: batched non-negative fits against one nnls call each; JSON.
 
-One valve's coarse grid as ``settled_curve`` searches it (starts 0 to 0.95 of the range,
-saturations past each up to 1.5, in steps of 1/80; both signs), at --plays play half-widths, on
---levels settled levels with the other valve's two columns held. Times
+One valve's coarse grid as ``settled_curve`` searches it in a Hammerstein fit (its own grid and
+basis: starts 0 to 0.95 of the range, saturations past each up to 1.5; both signs), at --plays
+play half-widths, on --levels settled levels with the other valve's two columns held. Times
 ``grid_least_squares.lowest_sums_of_squares`` over the whole grid against
 ``scipy.optimize.nnls`` called once per point and sign, on the same problems (the nnls loop on
 the first --nnls-points points only, scaled to the grid), and checks the two agree there. The
@@ -20,11 +20,11 @@ import numpy as np
 import scipy.optimize
 
 from maskless.analysis.identification.grid_least_squares import lowest_sums_of_squares
+from maskless.analysis.identification.hammerstein_problem import MAX_SATURATION, MAX_START
+from maskless.analysis.identification.settled_curve import basis_grid, coarse_pairs, grid_starts
 
 sys.path.insert(0, str(Path(__file__).parent))
 from machine import machine_description  # noqa: E402
-
-STEP = 1.0 / 80.0
 
 
 def grid_problem(levels: int, seed: int):
@@ -33,15 +33,8 @@ def grid_problem(levels: int, seed: int):
     x = rng.uniform(0.0, 1.0, levels)
     y = np.clip((x - 0.3) / 0.6, 0.0, 1.0) ** 2 + 0.01 * rng.standard_normal(levels)
     held = np.column_stack([rng.uniform(0.0, 1.0, levels), rng.uniform(0.0, 1.0, levels) ** 2])
-    pairs = np.array(
-        [
-            (s, c)
-            for s in np.arange(0.0, 0.95 + 1e-12, STEP)
-            for c in np.arange(s + STEP, 1.5 + 1e-12, STEP)
-        ]
-    )
-    t = np.clip((x[None, :] - pairs[:, :1]) / (pairs[:, 1:] - pairs[:, :1]), 0.0, 1.0)
-    return y, held, np.stack([1.0 - (1.0 - t) ** 2, t * t], axis=-1)
+    pairs = np.array(coarse_pairs(grid_starts(MAX_START), MAX_SATURATION))
+    return y, held, basis_grid(x, pairs[:, 0], pairs[:, 1])
 
 
 def nnls_loop(y, held, candidates) -> np.ndarray:

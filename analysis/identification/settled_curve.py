@@ -55,6 +55,7 @@ Choices, and why:
   likelihood-ratio interval for Gaussian errors).
 """
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -242,8 +243,13 @@ def fit_static_curves(
     samples = levels.samples[~in_sections]
     target = _Target(y, samples / samples.mean())
 
+    @functools.cache
     def spool(i, half_width):
-        """Where input i's spool rests at each level (fractions of the range)."""
+        """Where input i's spool rests at each level (fractions of the range).
+
+        Cached: the searches ask for every play of the grid at each sweep and again for the
+        intervals, and the play operator runs over every hold of the record.
+        """
         return play_operator(fractions[:, i], half_width)[level_holds]
 
     fixed = [sections[i].start if i in sections else None for i in range(inputs)]
@@ -379,8 +385,8 @@ def _start_interval(spool_of, plays, target, held, max_start, max_saturation):
 
     At each start the saturation, the sign and the play (over ``plays``) are at their best.
     """
-    starts = _grid_starts(max_start)
-    pairs = [(start, c) for start in starts for c in _grid_saturations(start, max_saturation)]
+    starts = grid_starts(max_start)
+    pairs = coarse_pairs(starts, max_saturation)
     start_of_pair = np.searchsorted(starts, [start for start, _ in pairs])
     lowest = np.full(starts.size, np.inf)
     for play in plays:
@@ -405,8 +411,8 @@ def _profile(
     ``section_start``) only the saturation is searched; with ``incumbent`` (((start,
     saturation), sign, play)) that stays unless the grid beats it.
     """
-    starts = _grid_starts(max_start) if fixed_start is None else [fixed_start]
-    coarse = [(start, c) for start in starts for c in _grid_saturations(start, max_saturation)]
+    starts = grid_starts(max_start) if fixed_start is None else [fixed_start]
+    coarse = coarse_pairs(starts, max_saturation)
     best = _best_of(spool_of, plays, target, held, coarse, incumbent)
     offsets = np.arange(-_GRID_STEP, _GRID_STEP + 1e-12, _REFINED_STEP)
     (start, saturation), _, play = best
@@ -420,9 +426,14 @@ def _profile(
     return _best_of(spool_of, [play], target, held, fine, best)
 
 
-def _grid_starts(max_start):
+def grid_starts(max_start):
     """The coarse grid's starting currents, 0 to ``max_start`` (fractions of the range)."""
     return np.arange(0.0, max_start + 1e-12, _GRID_STEP)
+
+
+def coarse_pairs(starts, max_saturation) -> list[tuple[float, float]]:
+    """The coarse grid's (start, saturation) points: each start with each saturation past it."""
+    return [(start, c) for start in starts for c in _grid_saturations(start, max_saturation)]
 
 
 def _grid_saturations(start, max_saturation):
@@ -455,7 +466,7 @@ def _lowest_sums(x, target, held, ends) -> np.ndarray:
     """(len(ends), 2) the lowest sum of squares per (start, saturation) and sign (``_SIGNS``)."""
     ends = np.asarray(ends, float)
     held = np.column_stack(held) if held else np.zeros((target.outputs.size, 0))
-    candidates = _basis_grid(x, ends[:, 0], ends[:, 1])
+    candidates = basis_grid(x, ends[:, 0], ends[:, 1])
     return lowest_sums_of_squares(target.outputs, held, candidates, target.weights)
 
 
@@ -474,10 +485,10 @@ def _nonnegative_fit(columns, target):
 
 def _basis(x, start, saturation) -> np.ndarray:
     """(N, 2) monotone degree-2 Bernstein steps of t = (x - start) / (saturation - start)."""
-    return _basis_grid(x, np.array([start]), np.array([saturation]))[0]
+    return basis_grid(x, np.array([start]), np.array([saturation]))[0]
 
 
-def _basis_grid(x, starts, saturations) -> np.ndarray:
+def basis_grid(x, starts, saturations) -> np.ndarray:
     """(K, N, 2) ``_basis`` at each (start, saturation) of (K,) ``starts`` and ``saturations``."""
     t = np.clip((x[None, :] - starts[:, None]) / (saturations - starts)[:, None], 0.0, 1.0)
     return np.stack([1.0 - (1.0 - t) ** 2, t * t], axis=-1)

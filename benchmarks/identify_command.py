@@ -6,7 +6,8 @@
 - Command: the wall time of the whole `maskless identify` process (interpreter, imports, reading
   the CSV record, the order-2 PEM fit, the report, the model file and the three plots) on a
   generated 20,000-sample CSV record (target <= 1 s, issue 14), and its CPU time (user + system,
-  with the plotting child's).
+  with the plotting child's); then the same with ``--no-plots`` (no plotting process, no
+  matplotlib).
 
 Each figure is the median of ``--repeats`` fresh processes, after one run that is not counted (it
 warms the disk cache). The record is tests/identification_records.py's order-2 system with
@@ -63,7 +64,7 @@ def import_seconds() -> float:
     return float(done.stdout)
 
 
-def command_seconds(record: tuple[Path, Path], out: Path) -> dict:
+def command_seconds(record: tuple[Path, Path], out: Path, plots: bool = True) -> dict:
     """Wall and CPU time of one whole `maskless identify` process, order-2 PEM (s).
 
     CPU time is user + system over the process and its plotting child: on a shared machine it
@@ -72,6 +73,7 @@ def command_seconds(record: tuple[Path, Path], out: Path) -> dict:
     u_path, y_path = record
     arguments = ["identify", "--input", str(u_path), "--output", str(y_path), "--ts", "0.048"]
     arguments += ["--orders", "2", "--method", "pem", "--out", str(out)]
+    arguments += [] if plots else ["--no-plots"]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     subprocess.run([*maskless_command(), *arguments], check=True, capture_output=True)
@@ -96,9 +98,12 @@ def main():
     load_before = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as folder:
         record = write_record(Path(folder))
-        commands = runs_of(lambda: command_seconds(record, Path(folder) / "out"), args.repeats)
+        out = Path(folder) / "out"
+        commands = runs_of(lambda: command_seconds(record, out), args.repeats)
+        unplotted = runs_of(lambda: command_seconds(record, out, plots=False), args.repeats)
     imports = runs_of(import_seconds, args.repeats)
     walls, cpus = [run["wall"] for run in commands], [run["cpu"] for run in commands]
+    unplotted_walls = [run["wall"] for run in unplotted]
     figures = {
         "benchmark": "identify_command",
         "samples": SAMPLES,
@@ -112,6 +117,9 @@ def main():
         "command_seconds": statistics.median(walls),
         "command_seconds_runs": walls,
         "command_cpu_seconds": statistics.median(cpus),
+        "command_no_plots_seconds": statistics.median(unplotted_walls),
+        "command_no_plots_seconds_runs": unplotted_walls,
+        "command_no_plots_cpu_seconds": statistics.median(run["cpu"] for run in unplotted),
         "targets": {"command_seconds": 1.0},
         # The machine may be shared: its 1-minute load average before and after the runs.
         "load_average": [load_before, os.getloadavg()[0]],

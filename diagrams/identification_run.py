@@ -429,10 +429,13 @@ def _detrend(u: np.ndarray, y: np.ndarray, mode: str) -> Detrended:
 
 
 def identify_to_files(
-    request: IdentificationRequest, out: str | Path, plotter: Worker | None = None
+    request: IdentificationRequest,
+    out: str | Path,
+    plotter: Worker | None = None,
+    plots: bool = True,
 ) -> dict:
     """``identify_record`` then ``write_identification`` (``maskless identify``)."""
-    return write_identification(identify_record(request), out, plotter)
+    return write_identification(identify_record(request), out, plotter, plots)
 
 
 def plot_calls(identified: "IdentificationRun", out: Path) -> list[tuple]:
@@ -464,14 +467,18 @@ def plot_calls(identified: "IdentificationRun", out: Path) -> list[tuple]:
 
 
 def write_identification(
-    identified: "IdentificationRun", out: str | Path, plotter: Worker | None = None
+    identified: "IdentificationRun",
+    out: str | Path,
+    plotter: Worker | None = None,
+    plots: bool = True,
 ) -> dict:
     """Writes OUT/report.json, one model file per order, and the record, compare, residual plots.
 
     The record plot is record.png; the others are one per model. ``plotter`` draws them on the
     second core meanwhile (``start_plot_worker``: the command starts it before it imports the
     estimators; one is started here if None); this waits for it, or stops it if writing fails.
-    Returns the report with each model's file named.
+    With ``plots`` False no plot is drawn, and an earlier run's plots in OUT are removed (they
+    would read as this run's). Returns the report with each model's file and plot named.
     """
     fitted_models, report, units = identified.fitted_models, identified.report, identified.units
     out = output_folder(out)
@@ -494,17 +501,21 @@ def write_identification(
         )
 
     report["removed_stale_files"] = remove_stale_outputs(
-        out, [f"{fitted.method}_order{fitted.order}" for fitted in fitted_models]
+        out, [f"{fitted.method}_order{fitted.order}" for fitted in fitted_models], plots
     )
-    plotter = plotter or start_plot_worker(out)
+    calls = plot_calls(identified, out) if plots else []
+    report["plots"] = [Path(args[0]).name for _, args, _ in calls]
+    plotter = plotter or (start_plot_worker(out) if plots else None)
     try:
-        for call in plot_calls(identified, out):
+        for call in calls:
             plotter.send(call)
         _write_model_files(identified, out, convertible)
         (out / "report.json").write_text(json.dumps(report, indent=1))
-        plotter.wait()
+        if plotter is not None:
+            plotter.wait()
     except BaseException:
-        plotter.stop()
+        if plotter is not None:
+            plotter.stop()
         raise
     return report
 
@@ -540,20 +551,25 @@ def _write_model_files(identified: "IdentificationRun", out: Path, convertible: 
 
 # The files `maskless identify` writes per model, as globs and with the model's stem filled in.
 _PER_MODEL_FILES = ("model_{}.yaml", "compare_{}.png", "residuals_{}.png")
+# The record's plots: one for a single input, one per input for several.
+_RECORD_PLOTS = ("record.png", "record_input*.png")
 
 
-def remove_stale_outputs(out: Path, stems: list[str]) -> list[str]:
+def remove_stale_outputs(out: Path, stems: list[str], plots: bool = True) -> list[str]:
     """Removes the per-model files of an earlier run in ``out`` that this run does not write.
 
     Removed rather than named: a model file left beside a new report reads as part of it (a
     user designs on model_pem_order4.yaml believing it judged by this report.json). Only files
-    of identify's own naming (``_PER_MODEL_FILES`` with a stem METHOD_orderN) are touched.
-    Returns the names removed, for the report.
+    of identify's own naming (``_PER_MODEL_FILES`` with a stem METHOD_orderN) are touched; when
+    this run draws no ``plots``, every plot of that naming goes, the record's too. Returns the
+    names removed, for the report.
     """
-    keep = {pattern.format(stem) for pattern in _PER_MODEL_FILES for stem in stems}
+    patterns = _PER_MODEL_FILES if plots else _PER_MODEL_FILES[:1]
+    keep = {pattern.format(stem) for pattern in patterns for stem in stems}
     removed = []
-    for pattern in _PER_MODEL_FILES:
-        for path in sorted(out.glob(pattern.format("*_order*"))):
+    globs = [pattern.format("*_order*") for pattern in _PER_MODEL_FILES]
+    for glob in globs + ([] if plots else list(_RECORD_PLOTS)):
+        for path in sorted(out.glob(glob)):
             if path.name not in keep and path.is_file():
                 path.unlink()
                 removed.append(path.name)
@@ -608,5 +624,7 @@ def format_identification_report(report: dict, out: str | Path) -> str:
             "removed an earlier run's files this run did not write: "
             + ", ".join(report["removed_stale_files"])
         )
-    lines += ["", report["verdict"], "", f"report, models and plots in {out}"]
+    drew_none = report.get("plots") == []  # None: not written yet
+    written = "report and models (no plots)" if drew_none else "report, models and plots"
+    lines += ["", report["verdict"], "", f"{written} in {out}"]
     return "\n".join(lines)

@@ -11,6 +11,7 @@ import json
 import numpy as np
 import pytest
 import scipy.signal
+import scipy.stats
 from identification_records import PAPER_DATA, paper_record
 
 import maskless
@@ -90,16 +91,28 @@ def test_transient_excitation_is_named_too_poor(name):
     assert excited.too_poor_for_orders == (2,)
 
 
-def test_trend_matches_numpy_least_squares_line():
+@pytest.mark.parametrize("samples", [3, 4, 50, SAMPLES])
+def test_trend_matches_scipy_linregress(samples):
+    # trend fits its line with numpy (scipy.stats is slow to import); linregress is the reference.
     rng = np.random.default_rng(3)
-    k = np.arange(SAMPLES)
-    signal = 40.0 + 0.002 * k + rng.standard_normal(SAMPLES)
-    slope, _ = np.polyfit(k, signal, 1)
-    residual = signal - np.polyval(np.polyfit(k, signal, 1), k)
+    k = np.arange(samples)
+    signal = 40.0 + 0.002 * k + rng.standard_normal(samples)
+    line = scipy.stats.linregress(k, signal)
+    residual = signal - (line.intercept + line.slope * k)
+    lag_1 = np.dot(residual[1:], residual[:-1]) / np.dot(residual, residual)
+    widened = line.stderr * np.sqrt((1 + lag_1) / (1 - lag_1))
     found = dd.trend(signal)
-    assert found.slope_per_sample == pytest.approx(slope, rel=1e-9)
-    assert found.drift_share == pytest.approx(1 - residual.var() / signal.var(), rel=1e-9)
+    assert found.slope_per_sample == pytest.approx(line.slope, rel=1e-9)
+    assert found.drift_share == pytest.approx(line.rvalue**2, rel=1e-9)
+    assert found.slope_t_statistic == pytest.approx(line.slope / widened, rel=1e-9)
     assert found.offset_share == pytest.approx(signal.mean() ** 2 / np.mean(signal**2))
+
+
+def test_trend_of_two_samples_is_the_line_through_them():
+    found = dd.trend(np.array([1.0, 3.0]))
+    assert found.slope_per_sample == pytest.approx(2.0)
+    assert found.drift_share == pytest.approx(1.0)
+    assert found.slope_t_statistic == np.inf
 
 
 def test_a_slow_stable_process_wanders_but_does_not_drift():

@@ -72,6 +72,28 @@ def test_a_whole_csv_identification_loads_none_of_them(tmp_path):
     assert not set(loaded) & set(UNUSED_BY_CSV_IDENTIFY)
 
 
+def test_an_unplotted_csv_identification_loads_no_plotting_and_no_slow_scipy(tmp_path):
+    # scipy.signal (it imports scipy.stats) and scipy.stats took 0.7-0.9 s of the command's
+    # second; matplotlib is the plots' alone. Unplotted, the earlier run's plots are removed.
+    rng = np.random.default_rng(1)
+    u = rng.standard_normal(400)
+    y = np.convolve(u, [0.0, 0.5, 0.3])[: u.size] + 0.1 * rng.standard_normal(u.size)
+    np.savetxt(tmp_path / "u.csv", u)
+    np.savetxt(tmp_path / "y.csv", y)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "record.png").write_bytes(b"an earlier run's plot")
+    argv = ["identify", "--input", str(tmp_path / "u.csv"), "--output", str(tmp_path / "y.csv")]
+    argv += ["--ts", "0.1", "--out", str(out), "--no-plots"]
+    code = f"from maskless.diagrams.cli import main\nassert main({argv!r}) == 0"
+    libraries = (*UNUSED_BY_CSV_IDENTIFY, "matplotlib", "scipy.signal", "scipy.stats")
+    assert loaded_by(code, libraries) == []
+    report = json.loads((out / "report.json").read_text())
+    assert report["plots"] == [] and not list(out.glob("*.png"))
+    assert report["removed_stale_files"] == ["record.png"]
+    assert (out / "model_pem_order2.yaml").is_file()
+
+
 @pytest.mark.parametrize("name", maskless.__all__)
 def test_every_public_name_of_the_package_imports(name):
     namespace = {}

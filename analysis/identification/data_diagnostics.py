@@ -19,7 +19,6 @@ report's verdict thresholds are, not derived values.
 from dataclasses import asdict, dataclass
 
 import numpy as np
-import scipy.stats
 
 from maskless.errors import RecordError
 
@@ -322,21 +321,28 @@ def trend(signal: np.ndarray) -> Trend:
     """
     mean_square = float(np.mean(signal**2))
     offset_share = float(signal.mean() ** 2 / mean_square) if mean_square > 0 else 0.0
-    if np.ptp(signal) == 0:  # no line to fit (linregress would divide by zero)
+    if np.ptp(signal) == 0:  # no line to fit (its share of a zero variance is undefined)
         return Trend(float(signal.mean()), 0.0, offset_share, 0.0, 0.0)
     samples = np.arange(signal.size)
-    line = scipy.stats.linregress(samples, signal)
-    residuals = signal - (line.intercept + line.slope * samples)
+    # numpy's line and its covariance, not scipy.stats.linregress: importing scipy.stats takes
+    # 0.7 s of the second `maskless identify` has (issue 14).
+    if signal.size > 2:
+        (slope, intercept), covariance = np.polyfit(samples, signal, 1, cov=True)
+        line_standard_error = float(np.sqrt(covariance[0, 0]))
+    else:  # two points: the line through them, exactly
+        (slope, intercept), line_standard_error = np.polyfit(samples, signal, 1), 0.0
+    residuals = signal - (intercept + slope * samples)
+    deviations = signal - signal.mean()
     lag_1 = float(np.dot(residuals[1:], residuals[:-1]) / max(np.dot(residuals, residuals), 1e-300))
     # Fewer independent samples widen the standard error by sqrt(N / N_eff).
     widening = np.sqrt((1 + lag_1) / max(1 - lag_1, np.finfo(float).eps))
-    standard_error = line.stderr * widening
+    standard_error = line_standard_error * widening
     return Trend(
         mean=float(signal.mean()),
-        slope_per_sample=float(line.slope),
+        slope_per_sample=float(slope),
         offset_share=offset_share,
-        drift_share=float(line.rvalue**2),
-        slope_t_statistic=float(line.slope / standard_error) if standard_error > 0 else np.inf,
+        drift_share=float(1.0 - np.dot(residuals, residuals) / np.dot(deviations, deviations)),
+        slope_t_statistic=float(slope / standard_error) if standard_error > 0 else np.inf,
     )
 
 

@@ -12,9 +12,10 @@ shape (N, m) and sums each input's FIR part B_i(q) u_i before the one shared rec
 
 It is the ARMAX model (Eq. 14-18) A(q) y = B(q) u + C(q) e with A(q) = 1 + a1 q⁻¹ + ... + an q⁻ⁿ,
 B(q) = b1 q⁻¹ + ... + bn q⁻ⁿ and C(q) = A(q) + k1 q⁻¹ + ... + kn q⁻ⁿ (c_i = a_i + k_i), so one
-class serves both. The one-step predictor (Eq. 19-20) is ŷ = (B/C) u + ((C - A)/C) y, which scipy's
-lfilter runs in C; its state is the model's state x, so an initial state enters as lfilter's zi
-(lfilter's transposed direct form is this observer form).
+class serves both. The one-step predictor (Eq. 19-20) is ŷ = (B/C) u + ((C - A)/C) y, which
+``linear_filter.filter_signal`` runs in compiled code; its state is the model's state x, so an
+initial state enters as the filter's (scipy lfilter's ``zi``: lfilter's transposed direct form is
+this observer form).
 
 This is identification's own working form: the estimators (PEM, ARMAX, ARX, N4SID) fit its
 coefficients (a, b, k) and the report's figures run its filters. Identification's result is the
@@ -27,8 +28,8 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-import scipy.signal
 
+from maskless.analysis.identification.linear_filter import filter_signal
 from maskless.systems.linear_model import LinearModel
 
 # How far the response to a unit initial state may grow before an x(0) fit stops using later
@@ -63,7 +64,7 @@ def impulse_response(denominator: np.ndarray, samples: int) -> np.ndarray:
     impulse = np.zeros(span)
     impulse[0] = 1.0
     response = np.zeros(samples)
-    response[:span] = scipy.signal.lfilter([1.0], denominator, impulse)
+    response[:span] = filter_signal([1.0], denominator, impulse)
     return response
 
 
@@ -122,7 +123,7 @@ class InnovationsModel:
             raise ValueError(f"u: expected shape (N, {self.inputs}), got {u.shape}")
         drive = np.zeros(u.shape[0])
         for column, numerator in zip(u.T, self.b.T, strict=True):
-            drive += scipy.signal.lfilter(np.concatenate([[0.0], numerator]), [1.0], column)
+            drive += filter_signal(np.concatenate([[0.0], numerator]), [1.0], column)
         return drive
 
     @property
@@ -178,12 +179,12 @@ class InnovationsModel:
         denominator = np.concatenate([[1.0], self.c])
         if self.b.ndim == 2:
             drive = self._input_drive(u)
-            drive += scipy.signal.lfilter(np.concatenate([[0.0], self.k]), [1.0], y)
-            return scipy.signal.lfilter([1.0], denominator, drive, zi=x0)[0]
+            drive += filter_signal(np.concatenate([[0.0], self.k]), [1.0], y)
+            return filter_signal([1.0], denominator, drive, x0)
         from_u = np.concatenate([[0.0], self.b])
         from_y = np.concatenate([[0.0], self.k])
-        predicted, _ = scipy.signal.lfilter(from_u, denominator, u, zi=x0)
-        return predicted + scipy.signal.lfilter(from_y, denominator, y)
+        predicted = filter_signal(from_u, denominator, u, x0)
+        return predicted + filter_signal(from_y, denominator, y)
 
     def predict_k_steps(self, u: np.ndarray, y: np.ndarray, steps: int) -> np.ndarray:
         """The k-step-ahead prediction ŷ(t | t-k), from zero initial conditions.
@@ -198,26 +199,25 @@ class InnovationsModel:
         c_poly = np.concatenate([[1.0], self.c])
         impulse = np.zeros(steps)
         impulse[0] = 1.0
-        noise_head = scipy.signal.lfilter(c_poly, a_poly, impulse)  # h(0..k-1) of C/A
+        noise_head = filter_signal(c_poly, a_poly, impulse)  # h(0..k-1) of C/A
         from_y = np.convolve(noise_head, a_poly)
         if self.b.ndim == 2:
             # Each filter shares the denominator C: their FIR parts are summed, then filtered once.
-            drive = scipy.signal.lfilter(noise_head, [1.0], self._input_drive(u))
-            drive -= scipy.signal.lfilter(from_y, [1.0], y)
-            return scipy.signal.lfilter([1.0], c_poly, drive) + y
+            drive = filter_signal(noise_head, [1.0], self._input_drive(u))
+            drive -= filter_signal(from_y, [1.0], y)
+            return filter_signal([1.0], c_poly, drive) + y
         from_u = np.convolve(noise_head, np.concatenate([[0.0], self.b]))
-        return scipy.signal.lfilter(from_u, c_poly, u) + y - scipy.signal.lfilter(from_y, c_poly, y)
+        return filter_signal(from_u, c_poly, u) + y - filter_signal(from_y, c_poly, y)
 
     def simulate(self, u: np.ndarray, initial_state=None) -> np.ndarray:
         """The noise-free response to ``u`` (simulation, no measured outputs used)."""
         x0 = self.initial_state if initial_state is None else np.asarray(initial_state, float)
         if self.b.ndim == 2:
             drive = self._input_drive(u)
-            return scipy.signal.lfilter([1.0], np.concatenate([[1.0], self.a]), drive, zi=x0)[0]
-        response, _ = scipy.signal.lfilter(
-            np.concatenate([[0.0], self.b]), np.concatenate([[1.0], self.a]), u, zi=x0
+            return filter_signal([1.0], np.concatenate([[1.0], self.a]), drive, x0)
+        return filter_signal(
+            np.concatenate([[0.0], self.b]), np.concatenate([[1.0], self.a]), u, x0
         )
-        return response
 
     def free_response(self, samples: int, initial_state=None) -> np.ndarray:
         """The output from the initial state alone, with no input."""

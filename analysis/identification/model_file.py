@@ -30,7 +30,7 @@ from maskless.systems.linear_model import LinearModel
 from maskless.systems.plant.valve_map import ValveMap
 
 if TYPE_CHECKING:
-    # For annotations only: identification imports scipy.signal (~0.6 s), which `maskless
+    # For annotations only: identification imports scipy.optimize (~0.35 s), which `maskless
     # simulate` loads this module for but never uses.
     from maskless.analysis.identification.report import FittedModel
 

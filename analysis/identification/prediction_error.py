@@ -20,12 +20,12 @@ from dataclasses import replace
 
 import numpy as np
 import scipy.optimize
-import scipy.signal
 
 from maskless.analysis.identification.innovations_model import (
     InnovationsModel,
     impulse_response,
 )
+from maskless.analysis.identification.linear_filter import filter_signal
 
 # Residual given to the optimiser when a trial predictor is unstable or overflows, relative to the
 # output's spread: far worse than any sensible model, yet finite.
@@ -243,7 +243,7 @@ def _error_jacobian(model: InnovationsModel, u, y, error, free: list[str]) -> np
         if name == "initial_state":
             signal = -impulse_response(denominator, samples)
         else:
-            signal = scipy.signal.lfilter([1.0], denominator, source)
+            signal = filter_signal([1.0], denominator, source)
         for i in range(n):
             delay = first_delay[name] + i
             transposed[block * n + i, delay:] = signal[: samples - delay]

@@ -30,7 +30,6 @@ from typing import NamedTuple
 
 import numpy as np
 import scipy.linalg
-import scipy.signal
 
 from maskless.analysis.identification.innovations_model import (
     InnovationsModel,
@@ -38,6 +37,7 @@ from maskless.analysis.identification.innovations_model import (
     impulse_response,
     samples_before_growth,
 )
+from maskless.analysis.identification.linear_filter import filter_signal
 from maskless.analysis.identification.prediction_error import (
     check_order_and_shapes,
     estimate_noise_model,
@@ -277,7 +277,7 @@ def _input_gain_and_initial_state(u, y, a, estimate_initial_state: bool):
     used = samples_before_growth(np.roots(denominator), y.size)
     columns = []
     for column in [u] if u.ndim == 1 else list(u.T):
-        through_a = scipy.signal.lfilter([1.0], denominator, column[:used])
+        through_a = filter_signal([1.0], denominator, column[:used])
         columns += delayed_copies(through_a, range(1, order + 1))
     if estimate_initial_state:
         columns += delayed_copies(impulse_response(denominator, used), range(order))

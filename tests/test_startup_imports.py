@@ -57,16 +57,20 @@ def test_the_plotting_worker_needs_no_estimator():
     assert loaded_by(code, ("scipy", "pydrake")) == []
 
 
-def test_a_whole_csv_identification_loads_none_of_them(tmp_path):
+def identify_code(folder, out, *flags) -> str:
+    """Code that runs `maskless identify` on a small CSV record written to ``folder``."""
     rng = np.random.default_rng(0)
     u = rng.standard_normal(400)
     y = np.convolve(u, [0.0, 0.5, 0.3])[: u.size] + 0.1 * rng.standard_normal(u.size)
-    np.savetxt(tmp_path / "u.csv", u)
-    np.savetxt(tmp_path / "y.csv", y)
-    argv = ["identify", "--input", str(tmp_path / "u.csv"), "--output", str(tmp_path / "y.csv")]
-    argv += ["--ts", "0.1", "--out", str(tmp_path / "out")]
-    code = f"from maskless.diagrams.cli import main\nassert main({argv!r}) == 0"
-    loaded = loaded_by(code)
+    np.savetxt(folder / "u.csv", u)
+    np.savetxt(folder / "y.csv", y)
+    argv = ["identify", "--input", str(folder / "u.csv"), "--output", str(folder / "y.csv")]
+    argv += ["--ts", "0.1", "--out", str(out), *flags]
+    return f"from maskless.diagrams.cli import main\nassert main({argv!r}) == 0"
+
+
+def test_a_whole_csv_identification_loads_none_of_them(tmp_path):
+    loaded = loaded_by(identify_code(tmp_path, tmp_path / "out"))
     assert (tmp_path / "out" / "report.json").is_file()
     # Where fork is unsafe the plots are drawn in this process: matplotlib is then expected.
     assert not set(loaded) & set(UNUSED_BY_CSV_IDENTIFY)
@@ -75,19 +79,11 @@ def test_a_whole_csv_identification_loads_none_of_them(tmp_path):
 def test_an_unplotted_csv_identification_loads_no_plotting_and_no_slow_scipy(tmp_path):
     # scipy.signal (it imports scipy.stats) and scipy.stats took 0.7-0.9 s of the command's
     # second; matplotlib is the plots' alone. Unplotted, the earlier run's plots are removed.
-    rng = np.random.default_rng(1)
-    u = rng.standard_normal(400)
-    y = np.convolve(u, [0.0, 0.5, 0.3])[: u.size] + 0.1 * rng.standard_normal(u.size)
-    np.savetxt(tmp_path / "u.csv", u)
-    np.savetxt(tmp_path / "y.csv", y)
     out = tmp_path / "out"
     out.mkdir()
     (out / "record.png").write_bytes(b"an earlier run's plot")
-    argv = ["identify", "--input", str(tmp_path / "u.csv"), "--output", str(tmp_path / "y.csv")]
-    argv += ["--ts", "0.1", "--out", str(out), "--no-plots"]
-    code = f"from maskless.diagrams.cli import main\nassert main({argv!r}) == 0"
     libraries = (*UNUSED_BY_CSV_IDENTIFY, "matplotlib", "scipy.signal", "scipy.stats")
-    assert loaded_by(code, libraries) == []
+    assert loaded_by(identify_code(tmp_path, out, "--no-plots"), libraries) == []
     report = json.loads((out / "report.json").read_text())
     assert report["plots"] == [] and not list(out.glob("*.png"))
     assert report["removed_stale_files"] == ["record.png"]

@@ -25,6 +25,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from maskless.analysis.identification.section_start import MIN_SECTION_LEVELS
 from maskless.diagrams.excitation_run import build_excitation_loop
 from maskless.diagrams.scenario import Scenario
 from maskless.diagrams.simulation import SimulationRun, simulate_loop
@@ -52,7 +53,9 @@ def run_sequential_experiment(
     valve's starting-current interval ((2, 2) in A) and the currents (A) at which its settled
     holds showed its curve alone (``HammersteinFit.settled_currents``), and the part gets
     ``targeted_level_currents`` from them (the intervals clipped to [0, top]; seeded ``seed``
-    plus the round).
+    plus the round). A valve held with the other open (``other_valve_currents_a``) gets its
+    share of a section's ``MIN_SECTION_LEVELS`` in every round, whatever the widths say: with
+    fewer the fit has no section, and reads that valve's start from the curves alone.
     Then the whole record runs once more. The same scenario and seed make every run's first
     samples the same, so the design read nothing the returned record does not hold; a run whose
     first samples differ raises RuntimeError.
@@ -89,6 +92,9 @@ def run_sequential_experiment(
         raise ValueError(f"rounds = {rounds!r}: expected an integer from 1 to the stretch's length")
     tops = np.asarray(top_currents_a, dtype=float)
     bounds = np.linspace(first, end, rounds + 1).round().astype(int)
+    # A section's levels, spread over the rounds, for each valve that is to have one.
+    sectioned = np.asarray(other_valve_currents_a, dtype=float) > 0.0
+    least_inside = tuple(int(v) for v in np.where(sectioned, -(-MIN_SECTION_LEVELS // rounds), 0))
     seen, intervals = [], []
     for round_index, (begin, stop) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
         applied, fused, _ = run_two_valve_experiment(config, currents[:, :begin], sample_period_s)
@@ -106,6 +112,7 @@ def run_sequential_experiment(
             coverage_share,
             other_valve_currents_a,
             settled,
+            least_inside,
         )
     applied, fused, run = run_two_valve_experiment(config, currents, sample_period_s)
     for earlier in seen:

@@ -8,6 +8,7 @@ from maskless.systems.control.valve_level_design import (
     MIN_TURN_SHARE,
     _gap_filling,
     _interleaved,
+    _least_respected,
     _width_share,
     random_level_currents,
     targeted_level_currents,
@@ -224,6 +225,32 @@ def test_holds_over_the_rest_of_the_curve_keep_the_other_valve_shut():
         np.testing.assert_array_equal(inlet, 0.15 if level <= high else 0.0)
 
 
+def test_a_valve_keeps_the_least_holds_asked_for_though_the_other_interval_is_wider():
+    # INTERVALS: the outlet's is four times the inlet's (as fractions), so the inlet would get
+    # MIN_TURN_SHARE of 133 holds inside; asked for 60, it gets them, and 5 levels (a round's
+    # share of a section) of a 9-hold stretch when the outlet's interval is far the wider.
+    assert _width_share(np.array(INTERVALS), np.array(TOPS)) == MIN_TURN_SHARE
+    plain = _targeted()
+    asked = targeted_level_currents(8000, TS, TOPS, INTERVALS, 6.0, 0, least_inside=(60, 0))
+    assert len(_holds(plain, 0)[0]) == round(MIN_TURN_SHARE * 8000 / 60)
+    assert len(_holds(asked, 0)[0]) == 60
+    short = targeted_level_currents(540, TS, TOPS, INTERVALS, 6.0, 0, least_inside=(5, 0))
+    assert len(_holds(short, 0)[0]) == 5
+    # Already given more than asked: the design is the one without the ask, bit for bit.
+    np.testing.assert_array_equal(
+        targeted_level_currents(8000, TS, TOPS, INTERVALS, 6.0, 0, least_inside=(0, 20)), plain
+    )
+
+
+@pytest.mark.parametrize(("share", "least", "count"), [(0.8, (0, 3), 7), (0.2, (4, 0), 7)])
+def test_least_holds_move_the_share_just_enough(share, least, count):
+    moved = _least_respected(share, np.array(least), count)
+    turns = _interleaved(count, moved)
+    assert np.sum(turns == 0) >= least[0] and np.sum(turns == 1) >= least[1]
+    # Asked for more holds than there are: shared in proportion to the asks.
+    assert _least_respected(share, np.array([6, 3]), 6) == pytest.approx(6 / 9)
+
+
 def test_targeted_levels_are_seeded():
     np.testing.assert_array_equal(_targeted(seed=3), _targeted(seed=3))
     assert not np.array_equal(_targeted(seed=3), _targeted(seed=4))
@@ -242,6 +269,9 @@ def test_targeted_levels_are_seeded():
         ({"other_valve_currents_a": (-0.01, 0.0)}, "other_valve_currents_a"),
         ({"settled_currents_a": ((0.1,),)}, "settled_currents_a"),
         ({"settled_currents_a": (0.1, 0.12)}, "settled_currents_a"),
+        ({"least_inside": (1, -1)}, "least_inside"),
+        ({"least_inside": (1.5, 0)}, "least_inside"),
+        ({"least_inside": (1,)}, "least_inside"),
     ],
 )
 def test_bad_targeted_arguments_name_the_argument(arguments, message):

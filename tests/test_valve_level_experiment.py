@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from maskless.analysis.identification.section_start import MIN_SECTION_LEVELS
 from maskless.diagrams.scenario import load_scenario
 from maskless.diagrams.valve_level_experiment import run_sequential_experiment
 from maskless.systems.control.valve_level_design import (
@@ -50,6 +51,38 @@ def test_a_sequential_design_reads_only_the_record_before_each_round():
         )
         np.testing.assert_array_equal(applied[:, begin:stop], expected)
     np.testing.assert_array_equal(intervals, [INTERVALS] * 2)
+
+
+def test_a_valve_held_with_the_other_open_gets_a_sections_levels_over_the_rounds():
+    # Section levels need MIN_SECTION_LEVELS distinct currents; with the inlet's interval the
+    # wider, the widths alone would give the outlet MIN_TURN_SHARE of each round's holds (2 of
+    # 10 here, 4 over two rounds), too few for a section.
+    config = load_scenario()
+    period_s = config.offset_free_lqg.sample_period_s
+    planned = random_level_currents(1400, period_s, TOPS, (2.0, 6.0), 1)
+    wide_inlet = ((0.02, 0.12), (0.05, 0.06))
+
+    def reading_of(u, y):
+        return wide_inlet, ((), ())
+
+    applied, *_ = run_sequential_experiment(
+        config,
+        planned,
+        period_s,
+        TOPS,
+        (200, 1400),
+        reading_of,
+        4.0,
+        0,
+        rounds=2,
+        other_valve_currents_a=(0.0, 0.15),
+    )
+    # The outlet's holds are those with the inlet held at 0.15 A; each hold is 60 samples.
+    firsts = np.arange(200, 1400, 60)
+    outlet_levels = applied[1, firsts + 59][applied[0, firsts + 59] == 0.15]
+    assert np.unique(outlet_levels).size >= MIN_SECTION_LEVELS
+    low, high = wide_inlet[1]
+    assert np.all((outlet_levels >= low) & (outlet_levels <= high))
 
 
 @pytest.mark.parametrize(

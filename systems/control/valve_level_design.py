@@ -123,6 +123,7 @@ def targeted_level_currents(
     coverage_share: float = 0.0,
     other_valve_currents_a: tuple[float, float] = (0.0, 0.0),
     settled_currents_a: tuple = ((), ()),
+    least_inside: tuple[int, int] = (0, 0),
 ) -> np.ndarray:
     """(2, samples) currents (A): the valves' holds inside their starting currents' intervals.
 
@@ -160,6 +161,10 @@ def targeted_level_currents(
         settled_currents_a: per valve, the currents (A) at which the record so far settled
             with it alone open (``HammersteinFit.settled_currents``): the holds over the rest
             of the curves go between them.
+        least_inside: per valve, the fewest holds inside its interval, whatever the widths
+            say (as many as there are, shared in proportion, when the two ask for more): a
+            section needs its levels (``section_start.MIN_SECTION_LEVELS``) even when the
+            other valve's interval is the wider.
 
     Raises:
         ValueError: naming the argument out of range.
@@ -174,6 +179,9 @@ def targeted_level_currents(
             f"settled_currents_a = {settled_currents_a}: expected a sequence of currents (A) "
             "per valve"
         )
+    least = np.asarray(least_inside)
+    if least.shape != (2,) or not (np.issubdtype(least.dtype, np.integer) and np.all(least >= 0)):
+        raise ValueError(f"least_inside = {least_inside}: expected a count >= 0 per valve")
     others = np.asarray(other_valve_currents_a, dtype=float)
     if others.shape != (2,) or not np.all((others >= 0.0) & (others <= tops[::-1])):
         raise ValueError(
@@ -192,7 +200,9 @@ def targeted_level_currents(
         settled_currents_a, intervals[:, 1], tops, int(covering.sum())
     )
     # The start the record so far places worse gets more of the holds inside the intervals.
-    turns[~covering] = _interleaved(int((~covering).sum()), _width_share(intervals, tops))
+    inside_count = int((~covering).sum())
+    inlet_share = _least_respected(_width_share(intervals, tops), least, inside_count)
+    turns[~covering] = _interleaved(inside_count, inlet_share)
     rank = np.zeros(count, dtype=int)
     for valve, (low, high) in enumerate(intervals):
         inside = np.flatnonzero((turns == valve) & ~covering)
@@ -214,6 +224,20 @@ def _width_share(intervals: np.ndarray, tops: np.ndarray) -> float:
     widths = (intervals[:, 1] - intervals[:, 0]) / tops
     share = 0.5 if widths.sum() <= 0.0 else widths[0] / widths.sum()
     return float(np.clip(share, MIN_TURN_SHARE, 1.0 - MIN_TURN_SHARE))
+
+
+def _least_respected(inlet_share: float, least: np.ndarray, count: int) -> float:
+    """``inlet_share`` moved as little as gives each valve ``least`` of ``count`` holds.
+
+    ``_interleaved`` gives a share s of ``count`` turns within one turn of s ``count``, exactly
+    where that is whole, so these bounds give at least ``least``. When the two ask for more
+    than ``count``, in proportion to what they ask.
+    """
+    if count == 0 or not least.any():
+        return inlet_share
+    if least.sum() >= count:
+        return float(least[0] / least.sum())
+    return float(np.clip(inlet_share, least[0] / count, 1.0 - least[1] / count))
 
 
 def _interleaved(count: int, inlet_share: float) -> np.ndarray:

@@ -80,10 +80,12 @@ def identify_hammerstein_to_files(
     input_field: str = VALVE_CURRENTS_FIELDS,
     output_recording: Path | None = None,
     output_field: str = DEFAULT_MCAP_OUTPUT,
+    plots: bool = True,
 ) -> dict:
     """Fits, judges and writes (see the module docstring); returns the report.
 
-    The record is read as ``read_two_valve_record`` reads it.
+    The record is read as ``read_two_valve_record`` reads it. With ``plots`` False no plot is
+    drawn, and an earlier run's in ``out`` is removed (it would read as this run's).
 
     Raises:
         RecordError: a recording that cannot be read as two valves and an output, a --ts more
@@ -130,8 +132,11 @@ def identify_hammerstein_to_files(
         report["models"].append(entry)
         figures.append((order, fit.model, simulated, linear_simulated))
     plot_path = out / "hammerstein.png"
-    _plot(plot_path, figures, u_val, y_val, ts)
-    report["plot"] = str(plot_path)
+    if plots:
+        _plot(plot_path, figures, u_val, y_val, ts)
+    else:
+        plot_path.unlink(missing_ok=True)
+    report["plot"] = str(plot_path) if plots else None
     (out / "report.json").write_text(json.dumps(report, indent=1))
     return report
 
@@ -198,5 +203,5 @@ def format_hammerstein_report(report: dict) -> str:
                 f"{saturation}, full opening moves the head {1e3 * valve['dc_gain']:.2f} mm"
             )
         lines.append(f"    model file: {model['model_file']}")
-    lines.append(f"  plot: {report['plot']}")
+    lines.append(f"  plot: {report['plot'] or 'none (--no-plots)'}")
     return "\n".join(lines)

@@ -39,6 +39,19 @@ def test_identify_hammerstein_writes_a_model_the_plants_load_and_a_report(
     assert np.isfinite(entry["validation_simulation_fit_percent"])
 
 
+def test_identify_hammerstein_without_plots_draws_none_and_removes_an_earlier_one(
+    recording, tmp_path, capsys
+):
+    out = tmp_path / "id"
+    out.mkdir()
+    (out / "hammerstein.png").write_bytes(b"an earlier run's plot")
+    argv = ["identify", "--input", str(recording), "--ts", "0.0666667", "--method", "hammerstein"]
+    assert main([*argv, "--out", str(out), "--no-plots"]) == 0
+    assert "plot: none (--no-plots)" in capsys.readouterr().out
+    assert json.loads((out / "report.json").read_text())["plot"] is None
+    assert not (out / "hammerstein.png").exists()
+
+
 def test_identify_hammerstein_refuses_a_csv_in_one_line(tmp_path, capsys):
     path = tmp_path / "u.csv"
     path.write_text("1\n2\n3\n")

@@ -213,6 +213,7 @@ def _run_hammerstein(args: argparse.Namespace) -> int:
         input_field=args.input_column or VALVE_CURRENTS_FIELDS,
         output_recording=args.output,
         output_field=args.output_column or DEFAULT_MCAP_OUTPUT,
+        plots=not args.no_plots,
     )
     print(json.dumps(report) if args.json else format_hammerstein_report(report))
     return 0

@@ -142,8 +142,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--no-plots",
         action="store_true",
-        help="write the report and model files only, no PNGs (for scripted runs: it skips the "
-        "plotting process and matplotlib's import, about half the command's time)",
+        help="write the report and model files only, no PNGs (for scripted runs: no plotting "
+        "process and no matplotlib import; an order-2 PEM fit of 20,000 samples then takes "
+        "about half the time)",
     )
 
 

@@ -134,9 +134,10 @@ def identify_hammerstein_to_files(
     plot_path = out / "hammerstein.png"
     if plots:
         _plot(plot_path, figures, u_val, y_val, ts)
+        report["plot"] = str(plot_path)
     else:
         plot_path.unlink(missing_ok=True)
-    report["plot"] = str(plot_path) if plots else None
+        report["plot"] = None
     (out / "report.json").write_text(json.dumps(report, indent=1))
     return report
 

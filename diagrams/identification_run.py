@@ -550,7 +550,8 @@ def _write_model_files(identified: "IdentificationRun", out: Path, convertible: 
 
 
 # The files `maskless identify` writes per model, as globs and with the model's stem filled in.
-_PER_MODEL_FILES = ("model_{}.yaml", "compare_{}.png", "residuals_{}.png")
+_MODEL_FILE, _MODEL_PLOTS = "model_{}.yaml", ("compare_{}.png", "residuals_{}.png")
+_PER_MODEL_FILES = (_MODEL_FILE, *_MODEL_PLOTS)
 # The record's plots: one for a single input, one per input for several.
 _RECORD_PLOTS = ("record.png", "record_input*.png")
 
@@ -564,8 +565,8 @@ def remove_stale_outputs(out: Path, stems: list[str], plots: bool = True) -> lis
     this run draws no ``plots``, every plot of that naming goes, the record's too. Returns the
     names removed, for the report.
     """
-    patterns = _PER_MODEL_FILES if plots else _PER_MODEL_FILES[:1]
-    keep = {pattern.format(stem) for pattern in patterns for stem in stems}
+    written = _PER_MODEL_FILES if plots else (_MODEL_FILE,)
+    keep = {pattern.format(stem) for pattern in written for stem in stems}
     removed = []
     globs = [pattern.format("*_order*") for pattern in _PER_MODEL_FILES]
     for glob in globs + ([] if plots else list(_RECORD_PLOTS)):

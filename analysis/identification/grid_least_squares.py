@@ -63,8 +63,9 @@ def lowest_sums_of_squares(y, held, candidates, weights=None) -> np.ndarray:
     bb = transposed @ candidates
     by = transposed @ y
     bh = transposed @ held
+    own_norms = np.diagonal(bb, axis1=1, axis2=2)  # (K, C): what the offset left of each column
     # An empty or constant column (a curve that is flat over every level) fits nothing.
-    usable = np.diagonal(bb, axis1=1, axis2=2) > _SINGULAR * raw_norms
+    usable = own_norms > _SINGULAR * raw_norms
     lowest = np.full((candidates.shape[0], 2), yy)
     for held_set in _subsets(held.shape[1], include_empty=True):
         gram = hh[np.ix_(held_set, held_set)]
@@ -89,7 +90,7 @@ def lowest_sums_of_squares(y, held, candidates, weights=None) -> np.ndarray:
             # caught by what the projection left of it.
             left = np.diagonal(gram_own, axis1=1, axis2=2)
             solvable = _nonsingular(gram_own) & np.all(usable[:, own_set], axis=1)
-            solvable &= np.all(left > _SINGULAR * np.diagonal(bb, axis1=1, axis2=2)[:, own_set], 1)
+            solvable &= np.all(left > _SINGULAR * own_norms[:, own_set], axis=1)
             # Negating the candidate's columns negates its weights and leaves the held weights
             # and the sum of squares as they are: one solve serves both signs.
             own = _solve(

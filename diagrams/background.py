@@ -3,8 +3,9 @@
 A ``Worker`` forks early and serves what the caller sends it later (picklable objects, through a
 pipe): `maskless simulate` streams the recording to one while the loop runs, and has another
 import matplotlib meanwhile (~0.35 s) and then plot; `maskless identify` has one import
-matplotlib while it imports the estimators. Child processes, not threads: a thread's work would
-hold the GIL the simulation needs.
+matplotlib while it imports the estimators, then draw its plots side by side
+(``serve_calls_at_once``). Child processes, not threads: a thread's work would hold the GIL the
+simulation needs.
 
 A worker never outlives its caller. Its ``connection.recv()`` raises EOFError once the caller is
 gone (killed, even by SIGKILL: the worker polls for its parent while it waits), once the caller
@@ -20,6 +21,7 @@ import multiprocessing
 import os
 import signal
 import sys
+import traceback
 import weakref
 from collections.abc import Callable
 
@@ -202,3 +204,74 @@ def serve_calls(connection, warm_up: Callable[[], None]) -> None:
     while (call := connection.recv()) is not None:
         function, args, kwargs = call
         function(*args, **kwargs)
+
+
+def serve_calls_at_once(connection, warm_up: Callable[[], None]) -> None:
+    """``serve_calls`` for independent calls (plots): each runs at once, in a fork of the worker.
+
+    A call is forked from the worker as it arrives, after ``warm_up`` (so every fork starts with
+    what it imported and set up), with as many running at a time as the process may use cores:
+    three plots on two cores end in about two plots' time instead of three. Where no child runs
+    (``Worker`` without fork), the calls run one after the other, as ``serve_calls`` makes them.
+
+    When the worker is stopped or finds its caller gone, the calls still running are killed. A
+    call is short (a plot), so the worker waits for it without polling for its caller: one still
+    running when the caller is killed ends with its call.
+
+    Raises:
+        RuntimeError: once every call has ended, naming each that failed (by function and first
+            argument; its traceback is on stderr).
+    """
+    if isinstance(connection, _Replay):
+        serve_calls(connection, warm_up)
+        return
+    warm_up()
+    running: dict[int, str] = {}
+    failed: list[str] = []
+    try:
+        while (call := connection.recv()) is not None:
+            if len(running) >= usable_cores():
+                failed += _reap_one(running)
+            function, args, kwargs = call
+            pid = os.fork()
+            if pid == 0:
+                _run_forked_call(function, args, kwargs)
+            running[pid] = f"{function.__name__}({args[0] if args else ''})"
+    except EOFError:  # the caller stopped or is gone: its calls' work goes with it
+        for pid in running:
+            os.kill(pid, signal.SIGKILL)
+        while running:
+            _reap_one(running)
+        raise
+    while running:
+        failed += _reap_one(running)
+    if failed:
+        raise RuntimeError(f"{', '.join(failed)} failed (its traceback is on stderr above)")
+
+
+def usable_cores() -> int:
+    """How many cores this process may run on (its affinity, not the machine's count)."""
+    return len(os.sched_getaffinity(0))
+
+
+def _run_forked_call(function: Callable, args: tuple, kwargs: dict) -> None:
+    """In a fork: makes the call, then ends the fork (0, or 1 with the traceback on stderr)."""
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    code = 0
+    try:
+        function(*args, **kwargs)
+    except BaseException:
+        traceback.print_exc()
+        code = 1
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        # Not sys.exit: a fork must not run its parent's clean-up (multiprocessing's, atexit's).
+        os._exit(code)
+
+
+def _reap_one(running: dict[int, str]) -> list[str]:
+    """Waits for one of the ``running`` forks to end: [its name] if it failed, else []."""
+    pid, status = os.wait()
+    name = running.pop(pid)
+    return [] if os.waitstatus_to_exitcode(status) == 0 else [name]

@@ -7,12 +7,20 @@ import argparse
 import contextlib
 import importlib
 import math
+import os
 import signal
 import sys
 import threading
 from pathlib import Path
 
 from maskless.errors import MasklessError
+
+# numpy's and scipy's OpenBLAS on one thread, unless the user set it: read when numpy loads, which
+# no import above does. maskless's matrices are small (an order-4 N4SID on 100,000 samples takes
+# 0.24 s on one thread or two), and the second core is its workers' (plots, the recording),
+# where OpenBLAS's idle threads would spin: they took 0.35 of the 1.0 CPU-seconds of `maskless
+# identify --no-plots`.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 # Command -> (module, summary). A command module has a docstring (its --help), add_arguments and
 # run_command; it parses flags into a typed request, makes one library call and formats the

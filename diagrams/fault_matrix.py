@@ -15,7 +15,6 @@ import dataclasses
 import functools
 import json
 import math
-import os
 import sys
 import traceback
 from dataclasses import dataclass
@@ -25,6 +24,7 @@ import numpy as np
 
 from maskless.analysis.fault_matrix_summary import CaseFaults, summarize_fault_matrix
 from maskless.analysis.trial_table import write_trial_table
+from maskless.diagrams.background import usable_cores
 from maskless.diagrams.output_folder import RunFolder
 from maskless.diagrams.process_pool import pool_results
 from maskless.diagrams.scenario import (
@@ -119,7 +119,7 @@ def run_fault_matrix(request: FaultMatrixRequest) -> dict:
     for faults in cases.values():
         validate_scenario(dataclasses.replace(request.scenario, faults=faults))
     run = functools.partial(fault_matrix_row, request.scenario, cases)
-    workers = max(1, min(request.workers or os.cpu_count() or 1, len(jobs)))
+    workers = max(1, min(request.workers or usable_cores(), len(jobs)))
     with RunFolder(request.out, FILES, overwrite=request.overwrite) as folder:
         results = (run(job) for job in jobs) if workers == 1 else pool_results(run, jobs, workers)
         rows = []

@@ -28,7 +28,6 @@ import dataclasses
 import functools
 import hashlib
 import json
-import os
 import sys
 import threading
 import time
@@ -42,6 +41,7 @@ import numpy as np
 
 from maskless.analysis.metrics import tracking_metrics
 from maskless.analysis.trial_table import TrialTableWriter, read_trial_rows, write_trial_table
+from maskless.diagrams.background import usable_cores
 from maskless.diagrams.closed_loop import ClosedLoop, build_closed_loop
 from maskless.diagrams.controller_design import NominalPneumatic
 from maskless.diagrams.output_folder import FolderLock, output_folder
@@ -318,7 +318,7 @@ def _run_in(out: Path, request: SweepRequest) -> dict:
     _claim_folder(out, config, key, request.restart)
     done = _finished_trials(table, config.controllers, config.seeds_per_patient)
     todo = [trial for trial in range(config.trials) if trial not in done]
-    workers = request.workers or os.cpu_count() or 1
+    workers = request.workers or usable_cores()
     start = time.perf_counter()
     with TrialTableWriter(table, ROW_COLUMNS) as writer, _progress_bar(request, todo) as bar:
         try:

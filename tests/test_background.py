@@ -1,11 +1,14 @@
 """Forked workers: they run, receive in order, and wait reports failures."""
 
+import os
 import sys
+import time
 from functools import partial
 
 import pytest
 
-from maskless.diagrams.background import Worker, serve_calls
+from maskless.diagrams import background
+from maskless.diagrams.background import Worker, serve_calls, serve_calls_at_once
 
 
 def write_text(path, text):
@@ -89,3 +92,110 @@ def test_a_stopped_call_worker_ends_quietly_and_wait_after_it_is_a_no_op():
     worker = Worker("idle", serve_calls, lambda: None)
     worker.stop()
     worker.wait()
+
+
+# Long enough for a loaded machine, short enough that a failing test does not hang the suite (s).
+_PATIENCE_S = 20.0
+
+
+def wait_for(path, patience_s=_PATIENCE_S):
+    deadline = time.monotonic() + patience_s
+    while not path.exists():
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"{path} never appeared")
+        time.sleep(0.01)
+
+
+def meet(mine, other):
+    # Each of two calls announces itself, then waits for the other: only calls running side by
+    # side both get past this.
+    mine.write_text("here")
+    wait_for(other)
+
+
+def test_calls_served_at_once_run_side_by_side(tmp_path, monkeypatch):
+    monkeypatch.setattr(background, "usable_cores", lambda: 2)  # even on a one-core machine
+    first, second = tmp_path / "first", tmp_path / "second"
+    worker = Worker("meeting", serve_calls_at_once, lambda: None)
+    worker.send((meet, (first, second), {}))
+    worker.send((meet, (second, first), {}))
+    worker.wait()  # one after the other, the first call would time out and fail
+    assert first.exists() and second.exists()
+
+
+_WARMED: list[int] = []
+
+
+def warm_up_here():
+    _WARMED.append(os.getpid())
+
+
+def record_warm_up_and_parent(path):
+    path.write_text(f"{_WARMED} {os.getppid()}")
+
+
+def test_each_call_is_a_fork_of_the_warmed_up_worker(tmp_path):
+    worker = Worker("recording", serve_calls_at_once, warm_up_here)
+    target = tmp_path / "out.txt"
+    worker.send((record_warm_up_and_parent, (target,), {}))
+    worker_pid = worker._child._process.pid
+    worker.wait()
+    # Warmed up once, in the worker, which is the call's parent.
+    assert target.read_text() == f"[{worker_pid}] {worker_pid}"
+    assert _WARMED == []  # not here, in the caller
+
+
+def fail_with_value_error(path):
+    raise ValueError(f"no plot for {path}")
+
+
+def write_late(path):
+    time.sleep(0.3)
+    path.write_text("late")
+
+
+def test_a_failed_call_is_reported_by_name_once_the_others_have_ended(tmp_path, capfd):
+    worker = Worker("plotting", serve_calls_at_once, lambda: None)
+    late = tmp_path / "late.txt"
+    worker.send((fail_with_value_error, ("bad.png",), {}))
+    worker.send((write_late, (late,), {}))
+    with pytest.raises(RuntimeError, match="plotting failed.*exit code 1"):
+        worker.wait()
+    assert late.read_text() == "late"
+    errors = capfd.readouterr().err
+    assert "ValueError: no plot for bad.png" in errors
+    assert "fail_with_value_error(bad.png) failed" in errors
+
+
+def sleep_after_announcing(started, done):
+    started.write_text(str(os.getpid()))
+    time.sleep(60)
+    done.write_text("done")
+
+
+def test_stopping_a_worker_kills_the_calls_it_runs(tmp_path):
+    started, done = tmp_path / "started", tmp_path / "done"
+    worker = Worker("sleeping", serve_calls_at_once, lambda: None)
+    worker.send((sleep_after_announcing, (started, done), {}))
+    wait_for(started)
+    begun = time.monotonic()
+    worker.stop()
+    assert time.monotonic() - begun < _PATIENCE_S  # not the call's 60 s
+    with pytest.raises(ProcessLookupError):  # killed and reaped
+        os.kill(int(started.read_text()), 0)
+    assert not done.exists()
+
+
+def append_pid(path, tag):
+    with path.open("a") as file:
+        file.write(f"{tag} {os.getpid()}\n")
+
+
+def test_without_fork_calls_served_at_once_run_in_order_in_the_caller(tmp_path, monkeypatch):
+    monkeypatch.setattr(background, "_FORK_IS_SAFE", False)
+    target = tmp_path / "out.txt"
+    worker = Worker("appending", serve_calls_at_once, lambda: None)
+    for tag in ("a", "b", "c"):
+        worker.send((append_pid, (target, tag), {}))
+    worker.wait()
+    assert target.read_text() == "".join(f"{tag} {os.getpid()}\n" for tag in "abc")

@@ -7,6 +7,7 @@ pay for them. Each check runs in a fresh interpreter, whose ``sys.modules`` star
 
 import importlib
 import json
+import os
 import subprocess
 import sys
 
@@ -88,6 +89,31 @@ def test_an_unplotted_csv_identification_loads_no_plotting_and_no_slow_scipy(tmp
     assert report["plots"] == [] and not list(out.glob("*.png"))
     assert report["removed_stale_files"] == ["record.png"]
     assert (out / "model_pem_order2.yaml").is_file()
+
+
+_BLAS_THREADS_AT_NUMPY_LOAD = (
+    "import os, sys\n"
+    "import maskless.diagrams.cli\n"
+    "assert 'numpy' not in sys.modules, 'numpy loaded before the CLI could set its threads'\n"
+    "print(os.environ.get('OPENBLAS_NUM_THREADS'))"
+)
+
+
+@pytest.mark.parametrize(("given", "expected"), [(None, "1"), ("2", "2")])
+def test_the_cli_runs_blas_on_one_thread_unless_the_user_chose(given, expected):
+    # OpenBLAS reads the variable when numpy loads: the CLI's module must set it before any
+    # import of numpy, and leave a value the user set.
+    environment = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if given is not None:
+        environment["OPENBLAS_NUM_THREADS"] = given
+    done = subprocess.run(
+        [sys.executable, "-c", _BLAS_THREADS_AT_NUMPY_LOAD],
+        capture_output=True,
+        text=True,
+        check=True,
+        env=environment,
+    )
+    assert done.stdout.split() == [expected]
 
 
 @pytest.mark.parametrize("name", maskless.__all__)

@@ -246,7 +246,7 @@ def serve_calls_at_once(connection, warm_up: Callable[[], None]) -> None:
     while running:
         failed += _reap_one(running)
     if failed:
-        raise RuntimeError(f"{', '.join(failed)} failed (its traceback is on stderr above)")
+        raise RuntimeError(f"{', '.join(failed)} failed (tracebacks on stderr above)")
 
 
 def usable_cores() -> int:
@@ -271,7 +271,13 @@ def _run_forked_call(function: Callable, args: tuple, kwargs: dict) -> None:
 
 
 def _reap_one(running: dict[int, str]) -> list[str]:
-    """Waits for one of the ``running`` forks to end: [its name] if it failed, else []."""
-    pid, status = os.wait()
-    name = running.pop(pid)
-    return [] if os.waitstatus_to_exitcode(status) == 0 else [name]
+    """Waits for a child to end: [its name] if it is one of the ``running`` forks and failed.
+
+    Any other child of the worker (one its warm-up started and left, say) is reaped and passed
+    over, and the wait goes on.
+    """
+    while True:
+        pid, status = os.wait()
+        if pid in running:
+            name = running.pop(pid)
+            return [] if os.waitstatus_to_exitcode(status) == 0 else [name]

@@ -1,6 +1,7 @@
 """Forked workers: they run, receive in order, and wait reports failures."""
 
 import os
+import subprocess
 import sys
 import time
 from functools import partial
@@ -165,6 +166,19 @@ def test_a_failed_call_is_reported_by_name_once_the_others_have_ended(tmp_path, 
     errors = capfd.readouterr().err
     assert "ValueError: no plot for bad.png" in errors
     assert "fail_with_value_error(bad.png) failed" in errors
+
+
+def start_a_child_and_leave_it():
+    subprocess.Popen([sys.executable, "-c", "pass"])  # ends at once; never waited for
+
+
+def test_a_child_the_warm_up_left_behind_is_passed_over(tmp_path):
+    # It ends before the call does: the wait for the call must not take it for one.
+    worker = Worker("writing", serve_calls_at_once, start_a_child_and_leave_it)
+    late = tmp_path / "late.txt"
+    worker.send((write_late, (late,), {}))
+    worker.wait()
+    assert late.read_text() == "late"
 
 
 def sleep_after_announcing(started, done):

@@ -226,11 +226,12 @@ def serve_calls_at_once(connection, warm_up: Callable[[], None]) -> None:
         serve_calls(connection, warm_up)
         return
     warm_up()
+    cores = usable_cores()
     running: dict[int, str] = {}
     failed: list[str] = []
     try:
         while (call := connection.recv()) is not None:
-            if len(running) >= usable_cores():
+            if len(running) >= cores:
                 failed += _reap_one(running)
             function, args, kwargs = call
             pid = os.fork()
@@ -240,11 +241,10 @@ def serve_calls_at_once(connection, warm_up: Callable[[], None]) -> None:
     except EOFError:  # the caller stopped or is gone: its calls' work goes with it
         for pid in running:
             os.kill(pid, signal.SIGKILL)
-        while running:
-            _reap_one(running)
         raise
-    while running:
-        failed += _reap_one(running)
+    finally:  # every fork is reaped, however the loop ended
+        while running:
+            failed += _reap_one(running)
     if failed:
         raise RuntimeError(f"{', '.join(failed)} failed (tracebacks on stderr above)")
 

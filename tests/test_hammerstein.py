@@ -111,11 +111,14 @@ def test_the_summary_reports_each_valve_and_the_poles(planted_fit):
     for index, valve in enumerate(summary["valves"].values()):
         assert valve["starting_current_spread"] == list(fit.starting_current_spread()[index])
         assert valve["highest_current_in_record"] == pytest.approx(u[:, index].max())
-    # A planted map with kinks pins its start: every search about as good finds it.
+    # The spread holds the planted start. How wide it is depends on where the other searches
+    # end, and that on the CPU's rounding: on one machine every search about as good found the
+    # inlet's 60 mA, on another (AMD EPYC, 2026-11-24) one ended at 34.2 mA with a cost 0.35 %
+    # above the best, inside the spread's 1 % tolerance.
     for (low, high), true in zip(
         planted_fit[2].starting_current_spread(), PLANTED.maps, strict=True
     ):
-        assert true.starting_current - 1.5e-3 < low <= high < true.starting_current + 1.5e-3
+        assert low - 1.5e-3 < true.starting_current < high + 1.5e-3
 
 
 def test_the_summary_names_where_each_start_came_from(planted_fit):

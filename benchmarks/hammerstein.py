@@ -12,9 +12,10 @@ by levels inside each valve's starting-current interval as a Hammerstein fit of 
 it finds it (in --rounds parts, each designed from the record up to it; the valve whose interval
 is wider gets more of them), held --targeted-hold-s each, approached alternately from below and
 above, the other valve meanwhile shut or held at --other-valve-ma; a --coverage-share of them goes
-instead to the widest stretch of either curve, above its interval, that no settled level has
-shown. The rest of the record, the held-out part included, is the same as without it, and the
-total length the same. F = 0 (the default) is the random design alone, bit for bit.
+instead over the rest of the curves: to the top eighth of a valve's range where no settled level
+has reached it, then to the widest stretch of either curve, above its interval, that no settled
+level has shown. The rest of the record, the held-out part included, is the same as without it,
+and the total length the same. F = 0 (the default) is the random design alone, bit for bit.
 
 Figures, against the issue's targets:
 
@@ -44,7 +45,11 @@ from pathlib import Path
 import numpy as np
 
 from maskless.analysis.identification.fit_metrics import fit_percent
-from maskless.analysis.identification.hammerstein import estimate_hammerstein, estimate_linear_arx
+from maskless.analysis.identification.hammerstein import (
+    estimate_hammerstein,
+    estimate_linear_arx,
+    held_out_simulation,
+)
 from maskless.diagrams.scenario import load_scenario
 from maskless.diagrams.valve_level_experiment import (
     run_sequential_experiment,
@@ -181,8 +186,7 @@ def measure_record(u, y, period_s, parameters, args) -> dict:
     u_est, y_est = u[:split], y[:split]
 
     def held_out_fit(model) -> float:
-        # Simulated from the record's start: the model enters the held-out part in its own state.
-        return fit_percent(y[split:], model.simulate(u)[split:])
+        return fit_percent(y[split:], held_out_simulation(model, u, slice(split, None)))
 
     started = time.perf_counter()
     fit = estimate_hammerstein(

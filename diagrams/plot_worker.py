@@ -20,6 +20,10 @@ def prepare_plotting() -> None:
     import io
 
     import matplotlib.backends.backend_agg  # noqa: F401
+
+    # Long signals are drawn from its samples (``fit_plots.drawn_samples``): imported once here,
+    # not in every fork.
+    import tsdownsample  # noqa: F401
     from matplotlib.figure import Figure
 
     figure = Figure(figsize=(2, 1.5))

@@ -13,8 +13,9 @@ whose interval is wider more often (``valve_level_design.targeted_level_currents
 alternately from below (from shut) and from above (a sample at the valve's top current first),
 so the hysteresis averages out. The stretch is taken from the random levels, so fewer of them
 reach the curve's top; a share of the targeted holds can go there instead (``coverage_share``:
-each in the middle of the widest stretch of either curve, above its interval, that no settled
-level has shown yet). A valve whose own effect near its start is below the levels' scatter (the
+first the top eighth of a valve's range where no settled level has reached it, then each in the
+middle of the widest stretch of either curve, above its interval, that no settled level has
+shown yet). A valve whose own effect near its start is below the levels' scatter (the
 outlet, venting a bladder at rest) can be held with the other valve open instead
 (``other_valve_currents_a``): the fit then reads its start from that section of the record
 (``analysis.identification.section_start``). It reads the record and the datasheet range only.

@@ -2,12 +2,13 @@
 
 import json
 
-import numpy as np
 import pytest
 
+from maskless.analysis.identification.fit_metrics import fit_percent
 from maskless.analysis.identification.model_file import load_identified_model
+from maskless.analysis.identification.records import parse_range
 from maskless.diagrams.cli import main
-from maskless.diagrams.hammerstein_run import format_hammerstein_report
+from maskless.diagrams.hammerstein_run import format_hammerstein_report, read_two_valve_record
 from maskless.systems.hammerstein_model import HammersteinModel
 
 
@@ -36,7 +37,12 @@ def test_identify_hammerstein_writes_a_model_the_plants_load_and_a_report(
     model = load_identified_model(entry["model_file"])
     assert isinstance(model, HammersteinModel) and model.is_stable()
     assert (out / "hammerstein.png").stat().st_size > 0
-    assert np.isfinite(entry["validation_simulation_fit_percent"])
+    # Judged on the validation part (the default 0.6:1) of the whole record's simulation, from
+    # rest at its first currents, by the model as its file loads.
+    u, y, _ = read_two_valve_record(recording)
+    part = parse_range("0.6:1", y.size, "--validation")
+    judged = fit_percent(y[part], model.simulate(u)[part])
+    assert entry["validation_simulation_fit_percent"] == pytest.approx(judged, abs=1e-6)
 
 
 def test_identify_hammerstein_without_plots_draws_none_and_removes_an_earlier_one(

@@ -151,13 +151,13 @@ def test_targeted_levels_spread_each_valve_over_its_interval_approached_from_bot
 
 def test_holds_over_the_rest_of_the_curve_fill_its_widest_gaps():
     lows, tops = np.array([INTERVALS[0][1], INTERVALS[1][1]]), np.array(TOPS)
-    # Seen: the inlet at 0.09 A, the outlet at 0.13 A. The inlet's 0.09-0.19 A gap is 53 % of
-    # its range, the outlet's 0.13-0.18 A 28 %: the inlet's is split first, then the outlet's
-    # (28 % against the inlet's halves, 26 %).
-    settled = ((0.09,), (0.13,))
+    # Seen: the inlet at 0.09 and 0.18 A, the outlet at 0.13 and 0.175 A (both tops' eighths
+    # seen). The inlet's 0.09-0.18 A gap is 47 % of its range, the outlet's 0.13-0.175 A 25 %:
+    # the inlet's is split first, then the outlet's (25 % against the inlet's halves, 24 %).
+    settled = ((0.09, 0.18), (0.13, 0.175))
     valves, currents = _gap_filling(settled, lows, tops, 2)
     np.testing.assert_array_equal(valves, [0, 1])
-    np.testing.assert_allclose(currents, [0.14, 0.155])
+    np.testing.assert_allclose(currents, [0.135, 0.1525])
     # Each hold splits a gap at least as wide as any left after it.
     valves, currents = _gap_filling(settled, lows, tops, 12)
     points = [
@@ -183,12 +183,42 @@ def test_holds_over_the_rest_of_the_curve_fill_its_widest_gaps():
     np.testing.assert_allclose(np.sort(covering), np.sort(expected))
 
 
+def test_a_top_eighth_no_settled_level_reached_is_held_first_in_its_middle():
+    lows, tops = np.array([INTERVALS[0][1], INTERVALS[1][1]]), np.array(TOPS)
+    # Neither valve's settled levels reach its top eighth (from 0.16625 and 0.1575 A): the
+    # first holds go to their middles, the inlet's first, then the gaps below them.
+    settled = ((0.09,), (0.13,))
+    valves, currents = _gap_filling(settled, lows, tops, 3)
+    np.testing.assert_array_equal(valves, [0, 1, 0])
+    # The gap left is the inlet's 0.09-0.178 A, 46 % of its range (the outlet's 0.13-0.169 A
+    # is 21 %), not 0.09-0.19 A: the hold at the top eighth shows that stretch.
+    np.testing.assert_allclose(currents, [0.19 * 15 / 16, 0.18 * 15 / 16, (0.09 + 0.178125) / 2])
+    # One hold: the inlet's top only.
+    valves, currents = _gap_filling(settled, lows, tops, 1)
+    np.testing.assert_array_equal(valves, [0])
+    # A settled level in the inlet's top eighth (0.17 A): only the outlet's top is held first.
+    valves, currents = _gap_filling(((0.09, 0.17), (0.13,)), lows, tops, 1)
+    np.testing.assert_array_equal(valves, [1])
+    np.testing.assert_allclose(currents, [0.18 * 15 / 16])
+    # Intervals reaching into the top eighths show them too: no top holds, the gaps' middles
+    # (the outlet's 0.16-0.18 A is 11 % of its range, the inlet's 0.17-0.19 A 10.5 %).
+    valves, currents = _gap_filling(settled, np.array([0.17, 0.16]), tops, 2)
+    np.testing.assert_array_equal(valves, [1, 0])
+    np.testing.assert_allclose(currents, [0.17, 0.18])
+    # Never at the top current itself: a section holding that valve open sits there.
+    stretch = targeted_level_currents(1800, TS, TOPS, INTERVALS, 6.0, 0, 0.5, (0.0, 0.19), settled)
+    _, inlet_levels = _holds(stretch, 0)
+    alone = inlet_levels[inlet_levels != 0.19]
+    assert np.any(np.isclose(alone, 0.19 * 15 / 16))
+
+
 def test_an_interval_reaching_the_top_current_leaves_that_valve_no_gap():
     tops = np.array(TOPS)
-    # The inlet's interval reaches its top: the holds go to the outlet's gaps.
-    valves, currents = _gap_filling(((), ()), np.array([TOPS[0], 0.10]), tops, 3)
+    # The inlet's interval reaches its top: the holds go to the outlet's top eighth, then its
+    # gaps (0.10 to the top eighth's middle, 0.16875 A).
+    valves, currents = _gap_filling(((), ()), np.array([TOPS[0], 0.10]), tops, 2)
     np.testing.assert_array_equal(valves, 1)
-    np.testing.assert_allclose(currents, [0.14, 0.12, 0.16])
+    np.testing.assert_allclose(currents, [0.16875, (0.10 + 0.16875) / 2])
     # Neither has a gap: the holds sit at the inlet's top current, the curve's flat end.
     valves, currents = _gap_filling(((), ()), tops, tops, 2)
     np.testing.assert_array_equal(valves, 0)
@@ -286,3 +316,17 @@ def test_bad_targeted_arguments_name_the_argument(arguments, message):
     }
     with pytest.raises(ValueError, match=message):
         targeted_level_currents(**fields)
+
+
+def test_a_stretch_cut_short_ends_inside_an_interval_never_over_the_curves():
+    # 11 whole 60-sample holds and a last one of 24 samples, which never settles: a quarter of
+    # the 12 holds (3) go over the curves, all among the whole ones.
+    samples = 11 * 60 + 24
+    settled = ((0.09,), (0.13,))
+    stretch = targeted_level_currents(samples, TS, TOPS, INTERVALS, 6.0, 0, 0.25, (0, 0), settled)
+    ends = np.minimum(np.arange(60, samples + 60, 60), samples) - 1
+    valves = np.argmax(stretch[:, ends] > 0.0, axis=0)
+    levels = stretch[valves, ends]
+    over = levels > np.array(INTERVALS)[valves, 1]
+    assert over.sum() == 3 and not over[-1]
+    assert levels[-1] >= np.array(INTERVALS)[valves[-1], 0]

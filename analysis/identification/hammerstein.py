@@ -299,6 +299,22 @@ def estimate_linear_arx(
     return problem.model(problem.initial_guesses()[0], sample_period_s, {})
 
 
+def held_out_simulation(model: HammersteinModel, u, part: slice) -> np.ndarray:
+    """``model``'s simulated output over the samples ``part`` of a record of currents ``u``.
+
+    Simulated over the whole record from rest at its first currents (``model.simulate``), so the
+    model enters the part in the state its own simulation reached there. Simulated from rest at
+    the part's first currents instead, a part that opens on a level the head is still rising to
+    starts the model millimetres from the head, and the figure judges where the split fell.
+
+    Args:
+        model: a fitted model (a Hammerstein fit or a linear baseline).
+        u: (N, inputs) the record's currents, in the model's unit.
+        part: the samples judged (the validation or held-out part).
+    """
+    return model.simulate(u)[part]
+
+
 def _settled_curves(u, y, order, delay, read_sections):
     """(the settled holds' static curves (``settled_curve``), the slowest pole's radius, counted).
 

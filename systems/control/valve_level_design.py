@@ -133,9 +133,10 @@ def targeted_level_currents(
     gets more), and its levels one in each of as many equal parts of its interval (a round's few
     levels still span it). With ``coverage_share``, that share of the holds (spread evenly
     among the others) goes over the rest of the curves instead, from an interval's top to its
-    valve's top current, with the other valve shut: each in the middle of the widest stretch no
-    settled level has shown yet, of either valve (``_gap_filling``), so a record whose random
-    part is cut short still shows its curves whole. Within each of those two kinds, a valve's
+    valve's top current, with the other valve shut: first the top eighth of a range no settled
+    level has reached, then each in the middle of the widest stretch no settled level has shown
+    yet, of either valve (``_gap_filling``), so a record whose random part is cut short still
+    shows its curves whole. Within each of those two kinds, a valve's
     holds alternate between approached from below (shut before the level: its hold's first
     sample shuts it if it was open, and at the stretch's start, where the design does not see
     what came before) and from above (the hold's first sample at the valve's top
@@ -192,7 +193,9 @@ def targeted_level_currents(
     hold = max(hold_samples((hold_s, hold_s), sample_period_s)[0], 2)
     rng = np.random.default_rng(seed)
     count = -(-samples // hold)
-    order = np.arange(count)
+    # Counted from the stretch's end, so that its last hold, cut short where the stretch is not
+    # a whole number of holds (and then never settled), is never one over the curves' rest.
+    order = np.arange(count)[::-1]
     covering = np.floor((order + 1) * coverage_share) - np.floor(order * coverage_share) == 1
     turns = np.empty(count, dtype=int)
     levels = np.zeros(count)
@@ -253,20 +256,34 @@ def _interleaved(count: int, inlet_share: float) -> np.ndarray:
 
 
 def _gap_filling(settled, interval_tops, tops, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """(valves, currents) of ``count`` holds, each in the middle of the widest gap left.
+    """(valves, currents) of ``count`` holds: unseen tops first, then the widest gaps' middles.
 
-    A valve's gaps are those between its ``interval_tops``, its ``tops`` and the currents
-    ``settled`` so far between them (its curve's stretches no settled level has shown); the
-    widest of both valves, as fractions of each one's top current, gets the next hold. A valve
-    whose interval reaches its top current has no gap; when neither has one, the hold is at the
-    top current (the curve's flat end).
+    A valve none of whose settled levels (nor its interval) reaches the top eighth of its range
+    gets the first hold there, in its middle, the inlet before the outlet. Then a valve's gaps
+    are those between its ``interval_tops``, its ``tops`` and the currents ``settled`` so far
+    between them (its curve's stretches no settled level has shown); the widest of both valves,
+    as fractions of each one's top current, gets the next hold, in its middle. A valve whose
+    interval reaches its top current has no gap; when neither has one, the hold is at the top
+    current (the curve's flat end).
     """
     points = [
         sorted({low, top, *(c for c in np.asarray(seen, float) if low < c < top)})
         for seen, low, top in zip(settled, interval_tops, tops, strict=True)
     ]
     valves, currents = np.zeros(count, dtype=int), np.zeros(count)
-    for k in range(count):
+    # Past a curve's highest settled level a fit only extrapolates (a saturation it never saw),
+    # and a gap's middle never reaches the top eighth: so that eighth, unseen, is held first.
+    # In its middle, not at the top current itself, where a section may hold that valve open
+    # (``other_valve_currents_a``): a level there would be read as that section's, shut.
+    unseen_tops = [
+        valve
+        for valve, (near, top) in enumerate(zip(points, tops, strict=True))
+        if near[0] < top and near[-2] < top * (1.0 - 1.0 / _STRATA)
+    ][:count]
+    for k, valve in enumerate(unseen_tops):
+        valves[k], currents[k] = valve, tops[valve] * (1.0 - 0.5 / _STRATA)
+        points[valve].insert(-1, currents[k])
+    for k in range(len(unseen_tops), count):
         gaps = [np.diff(p) / top for p, top in zip(points, tops, strict=True)]
         # Ties go to the inlet: the same holds on every run.
         valves[k] = int(np.argmax([g.max() if g.size else 0.0 for g in gaps]))

@@ -66,7 +66,7 @@ def drawn_samples(signal: np.ndarray) -> np.ndarray:
 
 
 def _plot_line(axis, time_s: np.ndarray, signal: np.ndarray, **style) -> None:
-    """``axis.plot(time_s, signal, **style)`` from the samples that draw the same pixels."""
+    """``axis.plot(time_s, signal, **style)`` from ``drawn_samples``: nearly the same pixels."""
     drawn = drawn_samples(signal)
     axis.plot(time_s[drawn], signal[drawn], **style)
 

@@ -136,12 +136,13 @@ def targeted_level_currents(
     valve's top current, with the other valve shut: first the top eighth of a range no settled
     level has reached, then each in the middle of the widest stretch no settled level has shown
     yet, of either valve (``_gap_filling``), so a record whose random part is cut short still
-    shows its curves whole. Within each of those two kinds, a valve's
-    holds alternate between approached from below (shut before the level: its hold's first
-    sample shuts it if it was open, and at the stretch's start, where the design does not see
-    what came before) and from above (the hold's first sample at the valve's top
-    current, which pushes the spool past any play band the datasheet allows, then the level),
-    so half its levels rest at each edge of the band.
+    shows its curves whole; never the stretch's last hold, cut short where the stretch is not
+    a whole number of holds. Within each of those two kinds, a valve's holds alternate between
+    approached from below (shut before the level: its hold's first sample shuts it if it was
+    open, and at the stretch's start, where the design does not see what came before) and from
+    above (the hold's first sample at the valve's top current, which pushes the spool past any
+    play band the datasheet allows, then the level), so half its levels rest at each edge of
+    the band.
 
     Args:
         samples: the stretch's length.
@@ -272,9 +273,10 @@ def _gap_filling(settled, interval_tops, tops, count: int) -> tuple[np.ndarray, 
     ]
     valves, currents = np.zeros(count, dtype=int), np.zeros(count)
     # Past a curve's highest settled level a fit only extrapolates (a saturation it never saw),
-    # and a gap's middle never reaches the top eighth: so that eighth, unseen, is held first.
-    # In its middle, not at the top current itself, where a section may hold that valve open
-    # (``other_valve_currents_a``): a level there would be read as that section's, shut.
+    # and the widest gap may lie lower: so a top eighth no level has reached is held first. In
+    # its middle, not at the top current itself, where a section may hold this valve open for
+    # the other's levels (``other_valve_currents_a``): a level there with the other valve shut
+    # would be read as one of that section's, and left out of this valve's curve.
     unseen_tops = [
         valve
         for valve, (near, top) in enumerate(zip(points, tops, strict=True))

@@ -30,10 +30,8 @@ Figures, against the issue's targets:
   fall), and the largest error as a fraction of the plant's whole steady lift range;
 - the simulation fit (MATLAB's fit %) on the held-out part, against the best linear model (ARX and
   output error, MISO, of the same and a higher order, fitted on the same part); the margin in fit
-  points. Each model is simulated over the whole record from rest at its first currents and
-  judged on the held-out part only: it enters that part in the state its own simulation reached,
-  not at rest at the part's first currents, which on a part that opens with a hold near the top
-  puts a model many millimetres from a head still rising and scores where the split falls.
+  points. Each model is judged as `maskless identify --method hammerstein` judges it, simulated
+  from the record's start (``hammerstein.held_out_simulation``, which says why).
 """
 
 import argparse

@@ -200,9 +200,12 @@ def format_hammerstein_report(report: dict) -> str:
                 else f"does not saturate up to the record's highest {1e3 * highest:.1f} mA"
             )
             play = valve.get("play_half_width")
+            tolerance = valve.get("spread_cost_tolerance")
             source = (
                 f"from {valve['starting_current_from']}, play ±{1e3 * play:.1f} mA; "
                 if play is not None
+                else f"searches ending within {100 * tolerance:.2g} % of the best cost; "
+                if tolerance is not None
                 else ""
             )
             lines.append(

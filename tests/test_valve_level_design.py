@@ -1,7 +1,16 @@
-"""The two-valve level designs: ranges, split, seed, the targeted levels; no plant truth read."""
+"""The two-valve level designs: ranges, split, seed, the targeted levels; no plant truth read.
+
+One test reads the pneumatic plant's steady lift: the reason the design aims a curve's holds at
+its interval's top, checked on the plant the benchmark measures it on.
+"""
 
 import numpy as np
 import pytest
+import scipy.optimize
+
+from maskless.analysis.identification.settled_curve import basis_grid
+from maskless.systems.plant.pneumatic_physics import LIFT
+from maskless.systems.plant.pneumatic_plant import equilibrium_state, load_pneumatic_parameters
 
 from maskless.systems.control.excitation import random_holds
 from maskless.systems.control.valve_level_design import (
@@ -97,6 +106,9 @@ def test_bad_arguments_are_one_line_naming_the_argument(arguments, message):
 
 
 INTERVALS = ((0.055, 0.075), (0.030, 0.110))
+# Where the holds aimed at INTERVALS go for a valve read through its curve (the other shut): the
+# interval's width centred on its top.
+CENTRED = ((0.065, 0.085), (0.070, 0.150))
 
 
 def _targeted(seed=0, samples=8000, hold_s=6.0):
@@ -128,15 +140,15 @@ def test_the_start_placed_worse_gets_more_of_the_holds_inside_the_intervals():
         assert np.all(np.abs(behind) <= 1.0)
 
 
-def test_targeted_levels_spread_each_valve_over_its_interval_approached_from_both_sides():
+def test_targeted_levels_spread_each_valve_about_its_interval_approached_from_both_sides():
     currents = _targeted(samples=120 * 60)  # whole holds only
     assert not np.any((currents[0] > 0.0) & (currents[1] > 0.0))
     counts = []
-    for valve, ((low, high), top) in enumerate(zip(INTERVALS, TOPS, strict=True)):
+    for valve, ((low, high), top) in enumerate(zip(CENTRED, TOPS, strict=True)):
         firsts, levels = _holds(currents, valve)
         counts.append(levels.size)
         assert np.all((levels >= low) & (levels <= high))
-        # As many equal parts of the interval as levels, one level in each.
+        # As many equal parts of the range as levels, one level in each.
         parts = np.floor((levels - low) / (high - low) * levels.size).astype(int)
         np.testing.assert_array_equal(np.sort(parts), np.arange(levels.size))
         from_above = currents[valve, firsts] == top
@@ -147,6 +159,58 @@ def test_targeted_levels_spread_each_valve_over_its_interval_approached_from_bot
         assert np.all(shut_first | (currents[valve, np.maximum(below - 1, 0)] == 0.0))
     # The outlet's interval is wider: it gets four holds to the inlet's one.
     assert counts[0] == pytest.approx(MIN_TURN_SHARE * sum(counts), abs=1)
+
+
+def _best_curve_with_start(currents_ma, lifts_mm, start_ma):
+    """The settled curves' family (rest plus monotone Bernstein steps) fitted with its start
+    fixed, the saturation searched over a 0.5 mA grid: a function of the current (mA)."""
+    best = None
+    for saturation in np.arange(150.0, 200.0, 0.5):
+        steps = basis_grid(currents_ma, np.array([start_ma]), np.array([saturation]))[0]
+        columns = np.column_stack([np.ones_like(currents_ma), steps])
+        coefficients, norm = scipy.optimize.nnls(columns, lifts_mm)
+        if best is None or norm < best[0]:
+            best = norm, saturation, coefficients
+    _, saturation, coefficients = best
+
+    def curve(currents):
+        steps = basis_grid(currents, np.array([start_ma]), np.array([saturation]))[0]
+        return coefficients[0] + steps @ coefficients[1:]
+
+    return curve
+
+
+def test_on_the_pneumatic_plant_rival_starts_curves_part_most_at_the_higher_start():
+    # The plant's noise-free steady lift with the outlet shut, at a random part's inlet levels.
+    parameters = load_pneumatic_parameters()
+    rest = equilibrium_state(parameters, 0.0, 0.0)[LIFT]
+    levels = np.array([0, 0, 0, 0, 0, 7, 20, 33, 45, 53, 80, 101, 110, 128, 146, 163, 178.0])
+    lifts = np.array([equilibrium_state(parameters, c / 1e3, 0.0)[LIFT] - rest for c in levels])
+    plant = _best_curve_with_start(levels, 1e3 * lifts, 60.0)  # the plant's start
+    grid = np.arange(50.0, 100.5, 0.5)
+    for rival in (70.0, 80.0):
+        difference = np.abs(_best_curve_with_start(levels, 1e3 * lifts, rival)(grid) - plant(grid))
+        # Largest within 5 mA of the rival's start; at the plant's start a third of that at most.
+        assert abs(grid[np.argmax(difference)] - rival) <= 5.0
+        assert difference[grid == 60.0][0] < difference.max() / 3
+
+
+def test_a_curve_is_held_about_its_intervals_top_and_a_section_over_its_interval():
+    # The inlet's curve leaves zero flat: the starts its interval holds part at its top. The
+    # outlet, held with the inlet open, is a section (a hinge): its whole interval.
+    other = 0.15
+    currents = targeted_level_currents(120 * 60, TS, TOPS, INTERVALS, 6.0, 0, 0.0, (0.0, other))
+    (inlet_low, inlet_high), (outlet_low, outlet_high) = CENTRED[0], INTERVALS[1]
+    inlet = _holds(currents, 0)[1]
+    inlet = inlet[inlet != other]
+    outlet = _holds(currents, 1)[1]
+    assert inlet.min() >= inlet_low and inlet.max() <= inlet_high
+    assert np.mean(inlet > INTERVALS[0][1]) == pytest.approx(0.5, abs=0.05)
+    assert outlet.min() >= outlet_low and outlet.max() <= outlet_high
+    # An interval near the top current: the range stops there.
+    near_top = ((0.15, 0.185), INTERVALS[1])
+    levels = _holds(targeted_level_currents(120 * 60, TS, TOPS, near_top, 6.0, 0), 0)[1]
+    assert levels.min() >= 0.1675 and levels.max() <= TOPS[0]
 
 
 def test_holds_over_the_rest_of_the_curve_fill_its_widest_gaps():
@@ -169,16 +233,20 @@ def test_holds_over_the_rest_of_the_curve_fill_its_widest_gaps():
     neighbours = np.sort(points[last])
     at = np.searchsorted(neighbours, currents[-1])
     assert widest_left <= (neighbours[at + 1] - neighbours[at - 1]) / tops[last] + 1e-12
-    # Through the design: the holds above the intervals are those, the other valve shut.
-    stretch = targeted_level_currents(1800, TS, TOPS, INTERVALS, 6.0, 0, 0.5, (0.0, 0.15), settled)
+    # Through the design: the holds over the curves are those, the other valve shut (each
+    # valve's holds aimed at its interval hold the other open, so they tell the two apart).
+    others = (0.15, 0.15)
+    stretch = targeted_level_currents(1800, TS, TOPS, INTERVALS, 6.0, 0, 0.5, others, settled)
     covering = []
     for valve in (0, 1):
         firsts, levels = _holds(stretch, valve)
-        # The inlet held at 0.15 A is the outlet's hold inside its interval, not the inlet's.
-        above = (levels > lows[valve]) & (levels != (0.15, 0.0)[valve])
-        covering += levels[above].tolist()
-        for first in firsts[above]:
-            np.testing.assert_array_equal(stretch[1 - valve, first + 1 : first + 60], 0.0)
+        # A level at 0.15 A is this valve held open for the other's hold, not its own.
+        own = levels != others[1 - valve]
+        other_shut = np.array(
+            [not stretch[1 - valve, first + 1 : first + 60].any() for first in firsts]
+        )
+        covering += levels[own & other_shut].tolist()
+        assert np.all(levels[own & other_shut] > lows[valve])
     expected = _gap_filling(settled, lows, tops, len(covering))[1]
     np.testing.assert_allclose(np.sort(covering), np.sort(expected))
 
@@ -231,8 +299,15 @@ def test_other_valve_currents_hold_the_other_valve_open_and_keep_both_approaches
     other = 0.15
     currents = targeted_level_currents(8000, TS, TOPS, INTERVALS, 6.0, 0, 0.0, (0.0, other))
     split = _targeted()
-    # The inlet is probed as in the split range, the outlet with the inlet held at 0.15 A.
-    np.testing.assert_array_equal(currents[1], split[1])
+    # The inlet is probed as in the split range, the outlet with the inlet held at 0.15 A, at
+    # the same draws over its interval (a section) instead of about its top (its curve).
+    (centred_low, centred_high), (low, high) = CENTRED[1], INTERVALS[1]
+    levels = (split[1] > 0.0) & (split[1] < TOPS[1])
+    over_interval = split[1].copy()
+    over_interval[levels] = low + (split[1, levels] - centred_low) * (high - low) / (
+        centred_high - centred_low
+    )
+    np.testing.assert_allclose(currents[1], over_interval, rtol=0, atol=1e-15)
     outlet_holds = split[1] > 0.0
     np.testing.assert_array_equal(currents[0, outlet_holds], other)
     inlet_firsts, inlet_levels = _holds(split, 0)
@@ -327,6 +402,6 @@ def test_a_stretch_cut_short_ends_inside_an_interval_never_over_the_curves():
     ends = np.minimum(np.arange(60, samples + 60, 60), samples) - 1
     valves = np.argmax(stretch[:, ends] > 0.0, axis=0)
     levels = stretch[valves, ends]
-    over = levels > np.array(INTERVALS)[valves, 1]
+    over = levels > np.array(CENTRED)[valves, 1]
     assert over.sum() == 3 and not over[-1]
-    assert levels[-1] >= np.array(INTERVALS)[valves[-1], 0]
+    assert levels[-1] >= np.array(CENTRED)[valves[-1], 0]

@@ -9,9 +9,6 @@ import pytest
 import scipy.optimize
 
 from maskless.analysis.identification.settled_curve import basis_grid
-from maskless.systems.plant.pneumatic_physics import LIFT
-from maskless.systems.plant.pneumatic_plant import equilibrium_state, load_pneumatic_parameters
-
 from maskless.systems.control.excitation import random_holds
 from maskless.systems.control.valve_level_design import (
     MIN_TURN_SHARE,
@@ -22,6 +19,8 @@ from maskless.systems.control.valve_level_design import (
     random_level_currents,
     targeted_level_currents,
 )
+from maskless.systems.plant.pneumatic_physics import LIFT
+from maskless.systems.plant.pneumatic_plant import equilibrium_state, load_pneumatic_parameters
 
 TS = 0.1
 TOPS = (0.19, 0.18)
@@ -162,8 +161,11 @@ def test_targeted_levels_spread_each_valve_about_its_interval_approached_from_bo
 
 
 def _best_curve_with_start(currents_ma, lifts_mm, start_ma):
-    """The settled curves' family (rest plus monotone Bernstein steps) fitted with its start
-    fixed, the saturation searched over a 0.5 mA grid: a function of the current (mA)."""
+    """The settled curves' family fitted with its start fixed: a function of the current (mA).
+
+    The family is rest plus monotone Bernstein steps (``settled_curve``); the saturation is
+    searched over a 0.5 mA grid.
+    """
     best = None
     for saturation in np.arange(150.0, 200.0, 0.5):
         steps = basis_grid(currents_ma, np.array([start_ma]), np.array([saturation]))[0]

@@ -8,9 +8,8 @@ fitted, the rest held out.
 
 With --targeted-share F, the record is designed sequentially
 (``valve_level_experiment.run_sequential_experiment``): the last F of the fitted part is replaced
-by levels aimed at each valve's starting-current interval as a Hammerstein fit of the record
-before it finds it (about its top with the other valve shut, over it with the other open; in
---rounds parts, each designed from the record up to it; the valve whose interval
+by levels inside each valve's starting-current interval as a Hammerstein fit of the record before
+it finds it (in --rounds parts, each designed from the record up to it; the valve whose interval
 is wider gets more of them), held --targeted-hold-s each, approached alternately from below and
 above, the other valve meanwhile shut or held at --other-valve-ma; a --coverage-share of them goes
 instead over the rest of the curves: to the top eighth of a valve's range where no settled level

@@ -8,16 +8,15 @@ fusion watching the head), with its two valve commands from the designed current
 near each valve's start in an hour, and a valve driven up from shut rests at the lower edge of
 its play band, so the start reads high by half the band. So part of the record is designed from
 what the record before it shows: the levels so far are fitted, and the next stretch holds the
-valves at levels aimed at the intervals of starting currents that fit cannot tell apart (about
-an interval's top where a valve is read through its curve, over it where through a section),
-the valve whose interval is wider more often (``valve_level_design.targeted_level_currents``),
-approached alternately from below (from shut) and from above (a sample at the valve's top
-current first), so the hysteresis averages out. The stretch is taken from the random levels,
-so fewer of them reach the curve's top; a share of the targeted holds can go there instead
-(``coverage_share``: first the top eighth of a valve's range where no settled level has reached
-it, then each in the middle of the widest stretch of either curve, above its interval, that no
-settled level has shown yet). A valve whose own effect near its start is below the levels'
-scatter (the outlet, venting a bladder at rest) can be held with the other valve open instead
+valves at levels inside the intervals of starting currents that fit cannot tell apart, the valve
+whose interval is wider more often (``valve_level_design.targeted_level_currents``), approached
+alternately from below (from shut) and from above (a sample at the valve's top current first),
+so the hysteresis averages out. The stretch is taken from the random levels, so fewer of them
+reach the curve's top; a share of the targeted holds can go there instead (``coverage_share``:
+first the top eighth of a valve's range where no settled level has reached it, then each in the
+middle of the widest stretch of either curve, above its interval, that no settled level has
+shown yet). A valve whose own effect near its start is below the levels' scatter (the
+outlet, venting a bladder at rest) can be held with the other valve open instead
 (``other_valve_currents_a``): the fit then reads its start from that section of the record
 (``analysis.identification.section_start``). It reads the record and the datasheet range only.
 """

@@ -30,10 +30,8 @@ Two arrangements:
 (``valve_pair_excitation``) never applies a current between 0 and a valve's starting current,
 where the map's flat part is, so this design draws its own: continuous levels.
 
-**Targeted levels** (``targeted_level_currents``): the valves held at levels aimed at the
-intervals of starting currents a fit cannot tell apart (the one placed worse more often; a valve
-read through its curve about its interval's top, where the rival starts' curves part, a valve
-read through a section over its interval), approached alternately from below and from above, so
+**Targeted levels** (``targeted_level_currents``): the valves held inside intervals of starting
+currents (the one placed worse more often), approached alternately from below and from above, so
 the hysteresis averages out, and over the stretches of the curves no settled level has shown;
 ``diagrams.valve_level_experiment.run_sequential_experiment`` designs part of a record with them
 from the record before it (why, there).
@@ -49,7 +47,7 @@ ARRANGEMENTS = ("split_range", "independent")
 TOP_CURRENT_A = 0.190
 # Equal parts of a valve's range that each block of its levels visits once (``_stratified``).
 _STRATA = 8
-# The least share of the holds aimed at the intervals each valve gets (``_width_share``).
+# The least share of the holds inside the intervals each valve gets (``_width_share``).
 MIN_TURN_SHARE = 0.2
 
 
@@ -127,16 +125,13 @@ def targeted_level_currents(
     settled_currents_a: tuple = ((), ()),
     least_inside: tuple[int, int] = (0, 0),
 ) -> np.ndarray:
-    """(2, samples) currents (A): the valves' holds aimed at their starting currents' intervals.
+    """(2, samples) currents (A): the valves' holds inside their starting currents' intervals.
 
     Each hold is ``hold_s`` long and drives one valve, the other shut (as in ``split_range``) or
-    held at ``other_valve_currents_a``. Of the holds aimed at the intervals, each valve gets a
+    held at ``other_valve_currents_a``. Of the holds inside the intervals, each valve gets a
     share as wide as its interval (``_width_share``: the start the record so far places worse
-    gets more), and its levels one in each of as many equal parts of the range they are aimed
-    at (a round's few levels still span it; ``_aimed_ranges``): the interval's width centred on
-    its top for a valve read through its curve (the other shut), where the curves of the starts
-    it holds differ most, the interval itself for one held with the other open (a section).
-    With ``coverage_share``, that share of the holds (spread evenly
+    gets more), and its levels one in each of as many equal parts of its interval (a round's few
+    levels still span it). With ``coverage_share``, that share of the holds (spread evenly
     among the others) goes over the rest of the curves instead, from an interval's top to its
     valve's top current, with the other valve shut: first the top eighth of a range no settled
     level has reached, then each in the middle of the widest stretch no settled level has shown
@@ -160,7 +155,7 @@ def targeted_level_currents(
         coverage_share: the share of holds above the interval, 0 to 1 (0: none, bit for bit
             the design without it).
         other_valve_currents_a: per valve, the current (A) the other valve holds during its
-            holds aimed at its interval (0: shut, the split range). A valve whose own effect is
+            holds inside the interval (0: shut, the split range). A valve whose own effect is
             small near its start (the outlet, venting a bladder at low pressure) shows that
             start several times more sharply on top of the other valve held open: the same
             opening then passes more air. Those levels form a section of the plant's steady
@@ -168,7 +163,7 @@ def targeted_level_currents(
         settled_currents_a: per valve, the currents (A) at which the record so far settled
             with it alone open (``HammersteinFit.settled_currents``): the holds over the rest
             of the curves go between them.
-        least_inside: per valve, the fewest holds aimed at its interval, whatever the widths
+        least_inside: per valve, the fewest holds inside its interval, whatever the widths
             say (as many as there are, shared in proportion, when the two ask for more): a
             section needs its levels (``section_start.MIN_SECTION_LEVELS``) even when the
             other valve's interval is the wider.
@@ -208,14 +203,14 @@ def targeted_level_currents(
     turns[covering], levels[covering] = _gap_filling(
         settled_currents_a, intervals[:, 1], tops, int(covering.sum())
     )
-    # The start the record so far places worse gets more of the holds aimed at the intervals.
+    # The start the record so far places worse gets more of the holds inside the intervals.
     inside_count = int((~covering).sum())
     inlet_share = _least_respected(_width_share(intervals, tops), least, inside_count)
     turns[~covering] = _interleaved(inside_count, inlet_share)
     rank = np.zeros(count, dtype=int)
-    for valve, (low, high) in enumerate(_aimed_ranges(intervals, tops, others)):
+    for valve, (low, high) in enumerate(intervals):
         inside = np.flatnonzero((turns == valve) & ~covering)
-        # As many strata as levels: a round's few levels spread over the whole range.
+        # As many strata as levels: a round's few levels spread over the whole interval.
         levels[inside] = low + (high - low) * _stratified(rng, inside.size, inside.size)
         above = np.flatnonzero((turns == valve) & covering)
         # Each kind of hold alternates its approach on its own, so both kinds see both edges.
@@ -224,28 +219,8 @@ def targeted_level_currents(
     return _turns(turns, levels, covering, from_above, tops, others, hold)[:, :samples]
 
 
-def _aimed_ranges(intervals: np.ndarray, tops: np.ndarray, others: np.ndarray) -> np.ndarray:
-    """(2, 2) per valve the currents its holds aimed at its start span.
-
-    A valve held with the other open (a section: flat, then straight) shows its start on both
-    sides of the hinge, so its whole interval. A valve read through its curve (the other shut)
-    leaves zero with almost no slope (the bladder's lift grows with the square of the opening),
-    so the curves the interval's starts fit differ least at its bottom and most at and just above
-    its top: fitted to the pneumatic plant's noise-free lift at a random part's levels, the best
-    curve starting at 80 mA reads 0.62 mm below the one starting at the plant's 60 mA at 80 mA,
-    0.33 mm at 75 and 0.49 mm at 85 mA, and 0.07 mm above it at 60 mA (one starting at 70 mA:
-    0.18 mm below at 70 mA, 0.01 mm above at 60; tests/test_valve_level_design.py). Its holds
-    span the interval's width centred on its top, up to the valve's top current.
-    """
-    half_widths = 0.5 * (intervals[:, 1] - intervals[:, 0])
-    centred = np.column_stack(
-        [intervals[:, 1] - half_widths, np.minimum(intervals[:, 1] + half_widths, tops)]
-    )
-    return np.where((others == 0.0)[:, None], centred, intervals)
-
-
 def _width_share(intervals: np.ndarray, tops: np.ndarray) -> float:
-    """The inlet's share of the holds aimed at the intervals: its interval's width over both.
+    """The inlet's share of the holds inside the intervals: its interval's width over both.
 
     Widths as fractions of each valve's range, the share within ``MIN_TURN_SHARE`` and one minus
     it (a half when neither interval has a width).

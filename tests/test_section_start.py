@@ -99,22 +99,27 @@ def test_a_section_is_a_valve_at_many_currents_with_the_other_held_open_at_one()
     assert find_sections(currents[np.r_[0:60, 61 : currents.shape[0]]]) == {}
 
 
-def _two_valve_levels(seed, section):
+def _two_valve_levels(seed, section, alone_levels=21):
     """Split-range levels of a gentle outlet, with or without a section on the inlet held open.
 
-    The section's levels are approached alternately from the outlet shut and fully open.
+    Each valve alone at ``alone_levels`` levels; the section's levels are approached
+    alternately from the outlet shut and fully open.
     """
     rng = np.random.default_rng(seed)
-    alone = np.linspace(0.0, 1.0, 21)
-    levels = [np.column_stack([alone, np.zeros(21)]), np.column_stack([np.zeros(21), alone])]
+    alone = np.linspace(0.0, 1.0, alone_levels)
+    levels = [
+        np.column_stack([alone, np.zeros(alone_levels)]),
+        np.column_stack([np.zeros(alone_levels), alone]),
+    ]
     holds = list(np.vstack(levels))
+    outside = 2 * alone_levels
     if section:
         for k, outlet in enumerate(START + np.linspace(-0.1, 0.1, 12)):
             holds += [(1.0, float(k % 2)), (1.0, outlet)]
-        levels.append(np.array(holds[42 + 1 :: 2]))
+        levels.append(np.array(holds[outside + 1 :: 2]))
     currents = np.vstack(levels)
     holds = np.array(holds)
-    level_holds = np.r_[np.arange(42), np.arange(43, holds.shape[0], 2)]
+    level_holds = np.r_[np.arange(outside), np.arange(outside + 1, holds.shape[0], 2)]
     spool = play_operator(holds[:, 1], HALF_WIDTH)[level_holds]
     # The split-range outlet lowers the output gently; with the inlet open, steeply.
     gentle = currents[:, 0] == 0.0
@@ -142,6 +147,21 @@ def test_a_section_places_a_gentle_valves_start_that_its_own_levels_cannot():
         )
     assert max(with_section) < 0.01
     assert np.median(alone) > 2 * max(with_section)
+
+
+def test_a_section_is_read_when_the_other_levels_fit_the_curves_with_its_start_found():
+    # 9 levels per valve alone: 17 outside the section (the inlet alone at its top current is
+    # read as one of the section's, its outlet shut), enough for the curves' 9 parameters less
+    # the outlet's start (twice 8). Counted as free (twice 9) the section stayed in the curves'
+    # fit, as if a sum of curves described it.
+    levels = _two_valve_levels(0, True, 9)
+    assert np.sum(~find_sections(levels.currents)[1]) == 17
+    curves = fit_static_curves(levels, 0.6, 1.2, read_sections=True)
+    assert curves.from_sections == (False, True)
+    assert abs(curves.starts[1] - START) < 0.01
+    # 8 per valve leave 15: too few for the curves, so the section stays in their fit.
+    fewer = fit_static_curves(_two_valve_levels(0, True, 8), 0.6, 1.2, read_sections=True)
+    assert fewer.from_sections == (False, False)
 
 
 def test_sections_are_read_only_when_asked():

@@ -217,6 +217,7 @@ def measure_record(u, y, period_s, parameters, args) -> dict:
         "poles": [[float(p.real), float(p.imag)] for p in fit.model.poles()],
         "converged": fit.converged,
         "message": fit.message,
+        "warnings": list(fit.warnings),
         "fit_wall_s": fit_s,
         "validation_simulation_fit_percent": {"hammerstein": hammerstein_fit, **linear},
         "best_linear": best_linear,

@@ -213,6 +213,7 @@ def format_hammerstein_report(report: dict) -> str:
                 f"({source}the record cannot tell apart {1e3 * low:.1f}-{1e3 * high:.1f} mA), "
                 f"{saturation}, full opening moves the head {1e3 * valve['dc_gain']:.2f} mm"
             )
+        lines += [f"    WARNING: {warning}" for warning in model.get("warnings", [])]
         lines.append(f"    model file: {model['model_file']}")
     lines.append(f"  plot: {report['plot'] or 'none (--no-plots)'}")
     return "\n".join(lines)

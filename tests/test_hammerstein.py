@@ -123,6 +123,7 @@ def test_the_summary_reports_each_valve_and_the_poles(planted_fit):
     assert inlet["starting_current"] == pytest.approx(0.060, abs=1.5e-3)
     assert inlet["curve_outputs"][-1] == pytest.approx(inlet["dc_gain"])
     assert len(summary["poles"]) == 2
+    assert summary["warnings"] == list(planted_fit[2].warnings) == []
     # The report's fields come from the summary, not added beside it by the command.
     u, _, fit = planted_fit
     for index, valve in enumerate(summary["valves"].values()):

@@ -144,3 +144,8 @@ def test_the_report_says_where_a_start_came_from_and_the_play_it_found():
     report["models"][0]["valves"]["inlet"] = {**valve, "spread_cost_tolerance": 0.081}
     inlet = format_hammerstein_report(report).splitlines()[2]
     assert "(searches ending within 8.1 % of the best cost; the record cannot" in inlet
+    # The fit's warnings are shown, each on its own line, before the model file.
+    report["models"][0]["warnings"] = ["the section was fitted as a sum of curves"]
+    lines = format_hammerstein_report(report).splitlines()
+    assert lines[4] == "    WARNING: the section was fitted as a sum of curves"
+    assert lines[5].startswith("    model file")

@@ -7,6 +7,7 @@ start, a slope, a play half-width) seen through that operator with noise.
 import numpy as np
 import pytest
 
+from maskless.analysis.identification.hammerstein import _section_warnings
 from maskless.analysis.identification.section_start import (
     MIN_SECTION_LEVELS,
     find_sections,
@@ -157,11 +158,14 @@ def test_a_section_is_read_when_the_other_levels_fit_the_curves_with_its_start_f
     levels = _two_valve_levels(0, True, 9)
     assert np.sum(~find_sections(levels.currents)[1]) == 17
     curves = fit_static_curves(levels, 0.6, 1.2, read_sections=True)
-    assert curves.from_sections == (False, True)
+    assert curves.from_sections == (False, True) and curves.unread_section_levels == 0
     assert abs(curves.starts[1] - START) < 0.01
-    # 8 per valve leave 15: too few for the curves, so the section stays in their fit.
+    # 8 per valve leave 15: too few for the curves, so the section stays in their fit, counted
+    # for the fit's warning (hammerstein._section_warnings).
     fewer = fit_static_curves(_two_valve_levels(0, True, 8), 0.6, 1.2, read_sections=True)
-    assert fewer.from_sections == (False, False)
+    assert fewer.from_sections == (False, False) and fewer.unread_section_levels == 13
+    assert "13 settled levels with the other valve held open" in _section_warnings(fewer)[0]
+    assert _section_warnings(curves) == ()
 
 
 def test_sections_are_read_only_when_asked():

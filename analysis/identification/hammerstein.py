@@ -84,6 +84,7 @@ class HammersteinFit:
             ``start_intervals``.
         settled_currents: per valve, the currents of the settled holds that showed its curve
             alone (the others shut), in the record's order; empty as ``start_intervals``.
+        warnings: what makes the fit suspect, one sentence each.
         The fit percentages are over the whole estimation record, section holds included,
         where the dynamics were not fitted (no sum of the maps describes them).
     """
@@ -101,6 +102,7 @@ class HammersteinFit:
     play_half_widths: tuple[float, ...] = ()
     starts_from_sections: tuple[bool, ...] = ()
     settled_currents: tuple[tuple[float, ...], ...] = ()
+    warnings: tuple[str, ...] = ()
 
     def starting_current_spread(self) -> list[tuple[float, float]]:
         """Per valve, (lowest, highest) starting current the record cannot tell apart.
@@ -159,6 +161,7 @@ class HammersteinFit:
             "output_unit": model.output_unit,
             "valves": valves,
             "poles": [[float(p.real), float(p.imag)] for p in model.poles()],
+            "warnings": list(self.warnings),
         }
 
 
@@ -267,6 +270,19 @@ def estimate_hammerstein(
         play_half_widths=curves.play_half_widths,
         starts_from_sections=curves.from_sections,
         settled_currents=tuple(tuple(c.tolist()) for c in curves.settled_currents),
+        warnings=_section_warnings(curves),
+    )
+
+
+def _section_warnings(curves) -> tuple[str, ...]:
+    """A section the curves' fit had to keep, named: no sum of curves describes its levels."""
+    if not curves.unread_section_levels:
+        return ()
+    return (
+        f"{curves.unread_section_levels} settled levels with the other valve held open (a "
+        "section) were fitted as a sum of the valves' curves, which does not describe them: too "
+        "few other levels settled to read the section apart. The starting currents and curves "
+        "may be far off; a longer record, or longer holds, gives the fit the levels it needs.",
     )
 
 

@@ -138,7 +138,9 @@ class StaticCurves:
     found it (``section_start``); ``section_levels`` (M,) which of the settled levels were
     sections, left out of the curves' fit; ``settled_currents`` per input, the currents of the
     levels that showed its curve alone (it open, the others shut); ``residual_rms`` the root of
-    the levels' weighted mean squared residual (each weighs the samples it averages).
+    the levels' weighted mean squared residual (each weighs the samples it averages);
+    ``unread_section_levels`` the levels of sections found but left in the curves' fit (too few
+    levels outside them), which no sum of curves describes.
     """
 
     starts: np.ndarray
@@ -151,6 +153,7 @@ class StaticCurves:
     from_sections: tuple[bool, ...]
     section_levels: np.ndarray
     settled_currents: tuple[np.ndarray, ...]
+    unread_section_levels: int = 0
 
     def curve(self, index: int, currents) -> np.ndarray:
         """The steady output change of input ``index`` from shut, at ``currents``."""
@@ -237,9 +240,9 @@ def fit_static_curves(
     # Every hold's currents as fractions of each input's range: the play runs over them all.
     holds, level_holds = levels.holds_in_order()
     fractions = (holds - low) / span
-    sections, in_sections = {}, np.zeros(y.size, dtype=bool)
+    sections, in_sections, unread = {}, np.zeros(y.size, dtype=bool), 0
     if read_sections:
-        sections, in_sections = _section_starts(levels, fractions, level_holds, max_start)
+        sections, in_sections, unread = _section_starts(levels, fractions, level_holds, max_start)
     u, y = u[~in_sections], y[~in_sections]
     level_holds = level_holds[~in_sections]
     samples = levels.samples[~in_sections]
@@ -304,6 +307,7 @@ def fit_static_curves(
         play_half_widths=tuple(float(span[i] * plays[i]) for i in range(inputs)),
         from_sections=tuple(i in sections for i in range(inputs)),
         section_levels=in_sections,
+        unread_section_levels=unread,
         settled_currents=tuple(
             u[(u[:, i] > 0.0) & np.all(np.delete(u, i, axis=1) == 0.0, axis=1), i]
             for i in range(inputs)
@@ -312,7 +316,9 @@ def fit_static_curves(
 
 
 def _section_starts(levels: SettledLevels, fractions, level_holds, max_start):
-    """({valve: its ``SectionStart``}, (M,) the levels in any section), fractions of the range.
+    """({valve: its ``SectionStart``}, (M,) the levels in any section, sections' levels unread).
+
+    Currents as fractions of the range.
 
     ``fractions`` (H, inputs) are every hold's currents as fractions of each input's range and
     ``level_holds`` (M,) the hold each level ends. None found where the levels outside the
@@ -329,12 +335,12 @@ def _section_starts(levels: SettledLevels, fractions, level_holds, max_start):
     for mask in masks.values():
         in_sections |= mask
     if not masks or not enough_levels(levels.currents[~in_sections], fixed_starts=len(masks)):
-        return {}, np.zeros(levels.outputs.size, dtype=bool)
+        return {}, np.zeros(levels.outputs.size, dtype=bool), int(in_sections.sum())
     found = {
         valve: section_start(fractions[:, valve], level_holds, levels.outputs, mask, max_start)
         for valve, mask in masks.items()
     }
-    return found, in_sections
+    return found, in_sections, 0
 
 
 def _sweeps(spool, target, fixed, limits, plays, ends, signs, play_grid=None):

@@ -56,7 +56,10 @@ from maskless.diagrams.valve_level_experiment import (
 )
 from maskless.systems.control.valve_level_design import TOP_CURRENT_A, random_level_currents
 from maskless.systems.plant.pneumatic_physics import LIFT
-from maskless.systems.plant.pneumatic_plant import equilibrium_state
+from maskless.systems.plant.pneumatic_plant import (
+    equilibrium_state,
+    validate_pneumatic_parameters,
+)
 from maskless.systems.units import a_to_ma, ma_to_a
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -315,14 +318,10 @@ def with_plant_starts(config, starts_ma):
         )
         for name, start in zip(VALVES, starts_ma, strict=True)
     }
-    for name, valve in valves.items():
-        if not 0.0 < valve.starting_current_a < valve.saturation_current_a:
-            raise ValueError(
-                f"--plant-starts-ma: the {name}'s {a_to_ma(valve.starting_current_a):g} mA is "
-                f"not between 0 and its saturation current, "
-                f"{a_to_ma(valve.saturation_current_a):g} mA"
-            )
-    return dataclasses.replace(config, pneumatic=dataclasses.replace(config.pneumatic, **valves))
+    pneumatic = dataclasses.replace(config.pneumatic, **valves)
+    # The plant's own checks (a positive start, below the saturation current), naming the flag.
+    validate_pneumatic_parameters(pneumatic, prefix=f"--plant-starts-ma {starts_ma}: pneumatic")
+    return dataclasses.replace(config, pneumatic=pneumatic)
 
 
 def main() -> None:

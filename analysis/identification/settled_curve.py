@@ -318,8 +318,6 @@ def fit_static_curves(
 def _section_starts(levels: SettledLevels, fractions, level_holds, max_start):
     """({valve: its ``SectionStart``}, (M,) the levels in any section, sections' levels unread).
 
-    Currents as fractions of the range.
-
     ``fractions`` (H, inputs) are every hold's currents as fractions of each input's range and
     ``level_holds`` (M,) the hold each level ends. None found where the levels outside the
     sections would leave some valve fewer than two distinct currents or the curves fewer than

@@ -36,6 +36,7 @@ Figures, against the issue's targets:
 
 import argparse
 import dataclasses
+import functools
 import json
 import sys
 import time
@@ -49,6 +50,7 @@ from maskless.analysis.identification.hammerstein import (
     estimate_linear_arx,
     held_out_simulation,
 )
+from maskless.diagrams.process_pool import pool_results
 from maskless.diagrams.scenario import load_scenario
 from maskless.diagrams.valve_level_experiment import (
     run_sequential_experiment,
@@ -248,6 +250,20 @@ def worst_over_seeds(runs: list[dict]) -> dict:
     return worst
 
 
+def measure_seed(config, args, seed: int) -> dict:
+    """One seed's record, fit and figures."""
+    u, y, simulated_s, rounds = pneumatic_record(config, args, seed)
+    run = measure_record(u, y, config.offset_free_lqg.sample_period_s, config.pneumatic, args)
+    design = {"targeted_start_intervals_ma": rounds} if rounds else {}
+    return {
+        "seed": seed,
+        "samples": int(u.shape[0]),
+        "simulation_wall_s": simulated_s,
+        **design,
+        **run,
+    }
+
+
 def measure(args) -> dict:
     config = load_scenario()
     if args.plant_starts_ma is not None:
@@ -264,19 +280,20 @@ def measure(args) -> dict:
             "other_valve_ma": list(args.other_valve_ma),
         }
     runs = []
-    for seed in args.seeds:
-        u, y, simulated_s, rounds = pneumatic_record(config, args, seed)
-        run = measure_record(u, y, period_s, parameters, args)
-        design = {"targeted_start_intervals_ma": rounds} if rounds else {}
-        runs.append(
-            {
-                "seed": seed,
-                "samples": int(u.shape[0]),
-                "simulation_wall_s": simulated_s,
-                **design,
-                **run,
-            }
+    started = time.perf_counter()
+    workers = min(args.jobs, len(args.seeds))
+    # A process per seed: a seed's figures are then the same whichever seeds share the command.
+    for run in pool_results(
+        functools.partial(measure_seed, config, args), args.seeds, workers, True
+    ):
+        runs.append(run)
+        print(
+            f"seed {run['seed']} done ({len(runs)} of {len(args.seeds)}, "
+            f"{time.perf_counter() - started:.0f} s)",
+            file=sys.stderr,
+            flush=True,
         )
+    runs.sort(key=lambda run: args.seeds.index(run["seed"]))
     return {
         "benchmark": "hammerstein",
         "record": {
@@ -380,7 +397,18 @@ def main() -> None:
         default=None,
         help="the plant's valves' starting currents (mA); default the scenario's (60 60)",
     )
+    parser.add_argument(
+        "--jobs",
+        type=int,
+        default=1,
+        help="seeds run at once, each in a process of its own (a seed's figures do not "
+        "depend on this)",
+    )
     args = parser.parse_args()
+    if args.jobs < 1:
+        raise ValueError(f"--jobs = {args.jobs}: expected at least 1")
+    if len(set(args.seeds)) != len(args.seeds):
+        raise ValueError(f"--seeds {args.seeds}: expected each seed once")
     if not 0.0 <= args.targeted_share < 1.0:
         raise ValueError(f"--targeted-share = {args.targeted_share}: expected 0 <= share < 1")
     if args.targeted_hold_s is None:

@@ -18,11 +18,21 @@ from collections.abc import Callable, Iterable, Iterator
 IN_FLIGHT_PER_WORKER = 4
 
 
-def pool_results(function: Callable, items: Iterable, workers: int) -> Iterator:
-    """``function(item)`` for each item, in the order they finish, on ``workers`` processes."""
+def pool_results(
+    function: Callable, items: Iterable, workers: int, fresh_worker_per_item: bool = False
+) -> Iterator:
+    """``function(item)`` for each item, in the order they finish, on ``workers`` processes.
+
+    With ``fresh_worker_per_item`` each item runs in a process of its own, so its result cannot
+    depend on what the worker ran before it (allocator state, caches), only on the item.
+    """
     context = multiprocessing.get_context("spawn")
     with concurrent.futures.ProcessPoolExecutor(
-        workers, mp_context=context, initializer=exit_with_parent, initargs=(os.getpid(),)
+        workers,
+        mp_context=context,
+        initializer=exit_with_parent,
+        initargs=(os.getpid(),),
+        max_tasks_per_child=1 if fresh_worker_per_item else None,
     ) as pool:
 
         def first_done(pending):

@@ -199,3 +199,39 @@ def test_with_settled_holds_the_hammerstein_fit_finds_the_planted_curves_and_pol
     assert fit.simulation_fit_percent > 98.0
     for (low, high), (start, *_) in zip(fit.starting_current_spread(), PLANTED_CURVES, strict=True):
         assert low <= start <= high
+
+
+def _record_with_an_inlet_top_held(planted, u, seconds):
+    """The planted record with its inlet capped at 0.13 A, then held alone at 0.185 A."""
+    capped = u.copy()
+    capped[:, 0] = np.minimum(capped[:, 0], 0.13)
+    top = np.repeat([[0.185, 0.0], [0.0, 0.0]], [round(seconds / TS), 400], axis=0)
+    u = np.vstack([capped, top])
+    rng = np.random.default_rng(5)
+    return u, planted.simulate(u) + 1e-4 * rng.standard_normal(u.shape[0])
+
+
+@pytest.mark.parametrize(
+    "seconds, warned",
+    [
+        (16.0, True),  # held past half a settling time (about 25 s here), not settled
+        (0.3, False),  # an approach's few samples: the record never held it there
+        (60.0, False),  # settled: the curve is measured up to the top
+    ],
+)
+def test_a_curve_the_record_held_higher_than_any_settled_level_is_named_extrapolated(
+    seconds, warned
+):
+    planted, u, _ = _planted_hammerstein_record()
+    u, y = _record_with_an_inlet_top_held(planted, u, seconds)
+    fit = estimate_hammerstein(u, y, 2, TS, input_unit="A", output_unit="m")
+    named = [w for w in fit.warnings if w.startswith("inlet: no hold above")]
+    if warned:
+        assert named == [
+            "inlet: no hold above 0.13 A settled, though the record holds it alone at up to "
+            "0.185 A: its curve above is extrapolated, not measured; longer holds near the top "
+            "show it."
+        ]
+    else:
+        assert named == []
+    assert not any(w.startswith("outlet") for w in fit.warnings)

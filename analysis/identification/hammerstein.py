@@ -52,6 +52,8 @@ from maskless.systems.hammerstein_model import HammersteinModel
 # A hold has settled this many time constants of the slowest pole after it began: e^-4, 2 % of
 # its step, left (the tail's mean then carries less than 1 %).
 _SETTLE_TIME_CONSTANTS = 4.0
+# A two-valve record's inputs, in its columns' order.
+VALVE_NAMES = ("inlet", "outlet")
 # A reflection coefficient this close to +-1 sits where tanh is flat (``_search``).
 _SATURATED_REFLECTION = 1.0 - 1e-6
 
@@ -119,7 +121,7 @@ class HammersteinFit:
             close = [tuple(m.starting_current for m in self.model.maps)]
         return [(min(values), max(values)) for values in zip(*close, strict=True)]
 
-    def summary(self, input_names=("inlet", "outlet")) -> dict:
+    def summary(self, input_names=VALVE_NAMES) -> dict:
         """Per valve: its map's ends, spread and static curve; and the poles.
 
         Each valve's starting current, where it came from and ``starting_current_spread``,
@@ -270,7 +272,8 @@ def estimate_hammerstein(
         play_half_widths=curves.play_half_widths,
         starts_from_sections=curves.from_sections,
         settled_currents=tuple(tuple(c.tolist()) for c in curves.settled_currents),
-        warnings=_section_warnings(curves),
+        warnings=_section_warnings(curves)
+        + _extrapolation_warnings(curves, u, y, _settle_samples(slowest), input_unit),
     )
 
 
@@ -284,6 +287,38 @@ def _section_warnings(curves) -> tuple[str, ...]:
         "few other levels settled to read the section apart. The starting currents and curves "
         "may be far off; a longer record, or longer holds, gives the fit the levels it needs.",
     )
+
+
+def _extrapolation_warnings(curves, u, y, settle: int, input_unit: str) -> tuple[str, ...]:
+    """A curve whose top the record held but no hold there settled: it is extrapolated.
+
+    Past its highest settled level a curve is the family's guess (a saturation it never saw), so
+    a model run where the record holds the valve higher can miss by millimetres. A hold counts as
+    driving the valve there when it lasts half a settling time (not an approach's few samples).
+    The gap allowed is a sixteenth of the highest such current: half a stratum of the random
+    design, which holds each valve once in every eighth of its range per block.
+    """
+    holds = settled_levels(u, y, 0, max(1, settle // 2))
+    warnings = []
+    for i, settled in enumerate(curves.settled_currents):
+        # The curve is the valve alone, so what counts is where the record held it alone.
+        alone = np.all(np.delete(holds.currents, i, axis=1) == 0.0, axis=1)
+        if not np.any(alone):
+            continue
+        held = float(np.max(holds.currents[alone, i]))
+        highest = float(np.max(settled)) if len(settled) else 0.0
+        if held - highest > held / 16.0:
+            warnings.append(
+                f"{_input_name(i)}: no hold above {highest:.4g} {input_unit} settled, though "
+                f"the record holds it alone at up to {held:.4g} {input_unit}: its curve above "
+                "is extrapolated, not measured; longer holds near the top show it."
+            )
+    return tuple(warnings)
+
+
+def _input_name(index: int) -> str:
+    """The name ``HammersteinFit.summary`` gives an input by default."""
+    return VALVE_NAMES[index] if index < len(VALVE_NAMES) else f"input_{index}"
 
 
 def search_cost_tolerance(residuals) -> float:
@@ -381,7 +416,7 @@ def _settled_curves(u, y, order, delay, read_sections):
     )
     if not slowest < 1.0:
         return None, None, None
-    settle = int(np.ceil(_SETTLE_TIME_CONSTANTS / -np.log(slowest)))
+    settle = _settle_samples(slowest)
     levels = settled_levels(u, y, settle, max(1, settle // 8))
     if not enough_levels(levels.currents):
         return None, None, None
@@ -391,6 +426,11 @@ def _settled_curves(u, y, order, delay, read_sections):
     if not curves.section_levels.any():
         return curves, slowest, None
     return curves, slowest, samples_outside(levels, curves.section_levels, settle, u.shape[0])
+
+
+def _settle_samples(slowest: float) -> int:
+    """The samples a hold takes to settle: ``_SETTLE_TIME_CONSTANTS`` of the slowest pole."""
+    return int(np.ceil(_SETTLE_TIME_CONSTANTS / -np.log(slowest)))
 
 
 def _fit(problem, theta, start, converged, message, evaluations, sample_period_s, units):

@@ -137,6 +137,7 @@ def pneumatic_record(config, args, seed):
             args.rounds,
             args.coverage_share,
             tuple(ma_to_a(np.asarray(args.other_valve_ma))),
+            args.tops_from_long_holds,
         )
         rounds = [a_to_ma(found).tolist() for found in intervals]
     # mA: the model's map is read in the record's units.
@@ -278,6 +279,7 @@ def measure(args) -> dict:
             "coverage_share": args.coverage_share,
             "targeted_hold_s": args.targeted_hold_s,
             "other_valve_ma": list(args.other_valve_ma),
+            "tops_from_long_holds": args.tops_from_long_holds,
         }
     runs = []
     started = time.perf_counter()
@@ -385,6 +387,12 @@ def main() -> None:
         type=float,
         default=None,
         help="each targeted level's hold (s); default the longest of --hold-s",
+    )
+    parser.add_argument(
+        "--tops-from-long-holds",
+        action="store_true",
+        help="a valve's top eighth counts as seen by the design only where a hold as long as "
+        "--targeted-hold-s showed it",
     )
     parser.add_argument(
         "--seeds", type=int, nargs="+", default=[0], help="one record and fit per seed"

@@ -31,7 +31,10 @@ from maskless.diagrams.excitation_run import build_excitation_loop
 from maskless.diagrams.scenario import Scenario
 from maskless.diagrams.simulation import SimulationRun, simulate_loop
 from maskless.systems.control.excitation import sampled_signal
-from maskless.systems.control.valve_level_design import targeted_level_currents
+from maskless.systems.control.valve_level_design import (
+    targeted_level_currents,
+    tops_seen_by_long_holds,
+)
 
 
 def run_sequential_experiment(
@@ -46,6 +49,7 @@ def run_sequential_experiment(
     rounds: int = 1,
     coverage_share: float = 0.0,
     other_valve_currents_a: tuple[float, float] = (0.0, 0.0),
+    tops_from_long_holds: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, SimulationRun, list[np.ndarray]]:
     """``run_two_valve_experiment`` with samples ``targeted`` designed from the record before them.
 
@@ -74,6 +78,8 @@ def run_sequential_experiment(
         coverage_share: the share of targeted holds over the rest of each curve (as there).
         other_valve_currents_a: per valve, the other valve's current during its targeted holds
             (as there).
+        tops_from_long_holds: a valve's top eighth counts as seen only where a hold as long
+            as ``hold_s`` showed it (``valve_level_design.tops_seen_by_long_holds``).
 
     Returns:
         (currents as applied (2, N), fused height (N,), the run, each round's intervals (A)).
@@ -100,6 +106,10 @@ def run_sequential_experiment(
     for round_index, (begin, stop) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
         applied, fused, _ = run_two_valve_experiment(config, currents[:, :begin], sample_period_s)
         spread, settled = reading_of(applied.T, fused)
+        if tops_from_long_holds:
+            settled = tops_seen_by_long_holds(
+                settled, applied.T, tuple(tops), hold_s, sample_period_s
+            )
         found = np.clip(np.asarray(spread, float), 0.0, tops[:, None])
         intervals.append(found)
         seen.append(fused)

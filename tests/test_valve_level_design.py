@@ -18,7 +18,6 @@ from maskless.systems.control.valve_level_design import (
     _width_share,
     random_level_currents,
     targeted_level_currents,
-    tops_seen_by_long_holds,
 )
 from maskless.systems.plant.pneumatic_physics import LIFT
 from maskless.systems.plant.pneumatic_plant import equilibrium_state, load_pneumatic_parameters
@@ -259,27 +258,6 @@ def test_a_top_eighth_no_settled_level_reached_is_held_first_in_its_middle():
     _, inlet_levels = _holds(stretch, 0)
     alone = inlet_levels[inlet_levels != 0.19]
     assert np.any(np.isclose(alone, 0.19 * 15 / 16))
-
-
-def test_a_top_only_a_hold_shorter_than_the_designs_showed_is_not_taken_as_seen():
-    # Holds of 6 s (60 samples) at TS: the inlet alone at 0.175 A for 4 s (a random hold a
-    # partial record's fit may call settled), at 0.186 A for 6 s approached from above (a
-    # sample at the top current first), the outlet alone at 0.17 A for 4 s, both open for 8 s.
-    applied = np.repeat(
-        [[0.0, 0.0], [0.175, 0.0], [0.19, 0.0], [0.186, 0.0], [0.0, 0.17], [0.186, 0.17]],
-        [30, 40, 1, 59, 40, 80],
-        axis=0,
-    )
-    settled = ((0.05, 0.12, 0.175, 0.186), (0.10, 0.17))
-    inlet, outlet = tops_seen_by_long_holds(settled, applied, TOPS, 6.0, TS)
-    # Below the top eighth (0.16625 A for the inlet, 0.1575 A for the outlet) all are kept.
-    np.testing.assert_array_equal(inlet, [0.05, 0.12, 0.186])
-    np.testing.assert_array_equal(outlet, [0.10])
-    # The design then holds the outlet's top eighth first, the inlet's not.
-    lows = np.array([INTERVALS[0][1], INTERVALS[1][1]])
-    valves, currents = _gap_filling((inlet, outlet), lows, np.array(TOPS), 1)
-    np.testing.assert_array_equal(valves, [1])
-    np.testing.assert_allclose(currents, [0.18 * 15 / 16])
 
 
 def test_an_interval_reaching_the_top_current_leaves_that_valve_no_gap():

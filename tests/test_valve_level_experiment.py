@@ -5,8 +5,12 @@ import pytest
 
 from maskless.analysis.identification.section_start import MIN_SECTION_LEVELS
 from maskless.diagrams.scenario import load_scenario
-from maskless.diagrams.valve_level_experiment import run_sequential_experiment
+from maskless.diagrams.valve_level_experiment import (
+    run_sequential_experiment,
+    tops_seen_by_long_holds,
+)
 from maskless.systems.control.valve_level_design import (
+    _gap_filling,
     random_level_currents,
     targeted_level_currents,
 )
@@ -103,3 +107,24 @@ def test_bad_sequential_arguments_name_the_argument(arguments, message):
     }
     with pytest.raises(ValueError, match=message):
         run_sequential_experiment(**fields)
+
+
+def test_a_top_only_a_hold_shorter_than_the_designs_showed_is_not_taken_as_seen():
+    # Holds of 6 s (60 samples) at TS: the inlet alone at 0.175 A for 4 s (a random hold a
+    # partial record's fit may call settled), at 0.186 A for 6 s approached from above (a
+    # sample at the top current first), the outlet alone at 0.17 A for 4 s, both open for 8 s.
+    applied = np.repeat(
+        [[0.0, 0.0], [0.175, 0.0], [0.19, 0.0], [0.186, 0.0], [0.0, 0.17], [0.186, 0.17]],
+        [30, 40, 1, 59, 40, 80],
+        axis=0,
+    )
+    settled = ((0.05, 0.12, 0.175, 0.186), (0.10, 0.17))
+    inlet, outlet = tops_seen_by_long_holds(settled, applied, TOPS, 6.0, TS)
+    # Below the top eighth (0.16625 A for the inlet, 0.1575 A for the outlet) all are kept.
+    np.testing.assert_array_equal(inlet, [0.05, 0.12, 0.186])
+    np.testing.assert_array_equal(outlet, [0.10])
+    # The design then holds the outlet's top eighth first, the inlet's not.
+    lows = np.array([INTERVALS[0][1], INTERVALS[1][1]])
+    valves, currents = _gap_filling((inlet, outlet), lows, np.array(TOPS), 1)
+    np.testing.assert_array_equal(valves, [1])
+    np.testing.assert_allclose(currents, [0.18 * 15 / 16])

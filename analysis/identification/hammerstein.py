@@ -44,6 +44,7 @@ from maskless.analysis.identification.profile_interval import CHI2_95
 from maskless.analysis.identification.settled_curve import (
     enough_levels,
     fit_static_curves,
+    hold_runs,
     samples_outside,
     settled_levels,
 )
@@ -273,7 +274,7 @@ def estimate_hammerstein(
         starts_from_sections=curves.from_sections,
         settled_currents=tuple(tuple(c.tolist()) for c in curves.settled_currents),
         warnings=_section_warnings(curves)
-        + _extrapolation_warnings(curves, u, y, _settle_samples(slowest), input_unit),
+        + _extrapolation_warnings(curves, u, _settle_samples(slowest), input_unit),
     )
 
 
@@ -289,7 +290,7 @@ def _section_warnings(curves) -> tuple[str, ...]:
     )
 
 
-def _extrapolation_warnings(curves, u, y, settle: int, input_unit: str) -> tuple[str, ...]:
+def _extrapolation_warnings(curves, u, settle: int, input_unit: str) -> tuple[str, ...]:
     """A curve whose top the record held but no hold there settled: it is extrapolated.
 
     Past its highest settled level a curve is the family's guess (a saturation it never saw), so
@@ -298,14 +299,15 @@ def _extrapolation_warnings(curves, u, y, settle: int, input_unit: str) -> tuple
     The gap allowed is a sixteenth of the highest such current: half a stratum of the random
     design, which holds each valve once in every eighth of its range per block.
     """
-    holds = settled_levels(u, y, 0, max(1, settle // 2))
+    starts, ends = hold_runs(u)
+    holds = u[starts[ends - starts >= max(1, settle // 2)]]
     warnings = []
     for i, settled in enumerate(curves.settled_currents):
         # The curve is the valve alone, so what counts is where the record held it alone.
-        alone = np.all(np.delete(holds.currents, i, axis=1) == 0.0, axis=1)
+        alone = np.all(np.delete(holds, i, axis=1) == 0.0, axis=1)
         if not np.any(alone):
             continue
-        held = float(np.max(holds.currents[alone, i]))
+        held = float(np.max(holds[alone, i]))
         highest = float(np.max(settled)) if len(settled) else 0.0
         if held - highest > held / 16.0:
             warnings.append(

@@ -185,14 +185,18 @@ class _Target:
     weights: np.ndarray
 
 
+def hold_runs(u) -> tuple[np.ndarray, np.ndarray]:
+    """(first sample, end) of each hold of ``u`` (N, inputs): a run of unchanged currents."""
+    change = np.flatnonzero(np.any(np.diff(u, axis=0) != 0.0, axis=1)) + 1
+    return np.concatenate([[0], change]), np.concatenate([change, [u.shape[0]]])
+
+
 def settled_levels(u, y, settle_samples: int, min_tail_samples: int) -> SettledLevels:
     """Each hold (a run of unchanged currents) longer than ``settle_samples + min_tail_samples``.
 
     Its mean output from ``settle_samples`` after it began to its end.
     """
-    change = np.flatnonzero(np.any(np.diff(u, axis=0) != 0.0, axis=1)) + 1
-    starts = np.concatenate([[0], change])
-    ends = np.concatenate([change, [u.shape[0]]])
+    starts, ends = hold_runs(u)
     tail = max(1, min_tail_samples)
     kept = np.flatnonzero(ends - starts - settle_samples >= tail)
     return SettledLevels(

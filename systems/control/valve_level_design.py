@@ -46,7 +46,7 @@ ARRANGEMENTS = ("split_range", "independent")
 # show the curve's flat top (the datasheet range the design knows; assets/pneumatic.yaml).
 TOP_CURRENT_A = 0.190
 # Equal parts of a valve's range that each block of its levels visits once (``_stratified``).
-_STRATA = 8
+STRATA = 8
 # The least share of the holds inside the intervals each valve gets (``_width_share``).
 MIN_TURN_SHARE = 0.2
 
@@ -99,7 +99,7 @@ def random_level_currents(
     return np.repeat(levels, holds, axis=0)[:samples].T
 
 
-def _stratified(rng, count: int, strata: int = _STRATA) -> np.ndarray:
+def _stratified(rng, count: int, strata: int = STRATA) -> np.ndarray:
     """``count`` fractions of the range, uniform, in blocks that each visit every stratum once.
 
     Each block of ``strata`` levels is one uniform draw from each of ``strata`` equal parts of
@@ -219,42 +219,6 @@ def targeted_level_currents(
     return _turns(turns, levels, covering, from_above, tops, others, hold)[:, :samples]
 
 
-def tops_seen_by_long_holds(
-    settled_currents_a, applied_currents_a, top_currents_a, hold_s: float, sample_period_s: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """``settled_currents_a`` less its top-eighth levels no hold as long as ``hold_s`` showed.
-
-    A fit of a record's first part counts a hold as settled after a settling time it estimates
-    from that part, and the whole record can find the plant slower: a random hold of 40 s at the
-    top of the inlet's range (``benchmarks/hammerstein.py --duration-s 5400``, seed 24) was
-    settled on the first 38 and 55 minutes' estimates (24 and 32 s), not on the whole record's
-    (41 s), and the design, taking the top as seen, held no level there. Past a curve's highest
-    settled level the fit only extrapolates, so at the top the design trusts only holds as long
-    as its own.
-
-    Args:
-        settled_currents_a: per valve, the currents (A) the fit counted as settled with it alone
-            open (``HammersteinFit.settled_currents``).
-        applied_currents_a: (N, 2) the currents (A) the record so far applied.
-        top_currents_a: each valve's highest current (A).
-        hold_s: the design's hold (s).
-        sample_period_s: the period of a sample (s).
-    """
-    applied = np.asarray(applied_currents_a, dtype=float)
-    change = np.flatnonzero(np.any(np.diff(applied, axis=0) != 0.0, axis=1)) + 1
-    starts = np.concatenate([[0], change])
-    lengths = np.diff(np.concatenate([starts, [applied.shape[0]]]))
-    # A designed hold approached from above spends its first sample at the top current.
-    long_holds = applied[starts[lengths >= hold_samples((hold_s, hold_s), sample_period_s)[0] - 1]]
-    kept = []
-    for valve, (seen, top) in enumerate(zip(settled_currents_a, top_currents_a, strict=True)):
-        seen = np.asarray(seen, dtype=float)
-        alone = long_holds[long_holds[:, 1 - valve] == 0.0, valve]
-        at_top = seen >= top * (1.0 - 1.0 / _STRATA)
-        kept.append(seen[~at_top | np.isin(seen, alone)])
-    return kept[0], kept[1]
-
-
 def _width_share(intervals: np.ndarray, tops: np.ndarray) -> float:
     """The inlet's share of the holds inside the intervals: its interval's width over both.
 
@@ -316,10 +280,10 @@ def _gap_filling(settled, interval_tops, tops, count: int) -> tuple[np.ndarray, 
     unseen_tops = [
         valve
         for valve, (near, top) in enumerate(zip(points, tops, strict=True))
-        if near[0] < top and near[-2] < top * (1.0 - 1.0 / _STRATA)
+        if near[0] < top and near[-2] < top * (1.0 - 1.0 / STRATA)
     ][:count]
     for k, valve in enumerate(unseen_tops):
-        valves[k], currents[k] = valve, tops[valve] * (1.0 - 0.5 / _STRATA)
+        valves[k], currents[k] = valve, tops[valve] * (1.0 - 0.5 / STRATA)
         points[valve].insert(-1, currents[k])
     for k in range(len(unseen_tops), count):
         gaps = [np.diff(p) / top for p, top in zip(points, tops, strict=True)]

@@ -27,12 +27,15 @@ from collections.abc import Callable
 import numpy as np
 
 from maskless.analysis.identification.section_start import MIN_SECTION_LEVELS
-from maskless.analysis.identification.settled_curve import hold_runs
+from maskless.analysis.identification.settled_curve import hold_runs, others_shut
 from maskless.diagrams.excitation_run import build_excitation_loop
 from maskless.diagrams.scenario import Scenario
 from maskless.diagrams.simulation import SimulationRun, simulate_loop
 from maskless.systems.control.excitation import hold_samples, sampled_signal
-from maskless.systems.control.valve_level_design import STRATA, targeted_level_currents
+from maskless.systems.control.valve_level_design import (
+    targeted_level_currents,
+    top_eighth_floor,
+)
 
 
 def run_sequential_experiment(
@@ -161,8 +164,8 @@ def tops_seen_by_long_holds(
     kept = []
     for valve, (seen, top) in enumerate(zip(settled_currents_a, top_currents_a, strict=True)):
         seen = np.asarray(seen, dtype=float)
-        alone = long_holds[long_holds[:, 1 - valve] == 0.0, valve]
-        at_top = seen >= top * (1.0 - 1.0 / STRATA)
+        alone = long_holds[others_shut(long_holds, valve), valve]
+        at_top = seen >= top_eighth_floor(top)
         kept.append(seen[~at_top | np.isin(seen, alone)])
     return kept[0], kept[1]
 

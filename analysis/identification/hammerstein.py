@@ -45,6 +45,7 @@ from maskless.analysis.identification.settled_curve import (
     enough_levels,
     fit_static_curves,
     hold_runs,
+    others_shut,
     samples_outside,
     settled_levels,
 )
@@ -304,7 +305,7 @@ def _extrapolation_warnings(curves, u, settle: int, input_unit: str) -> tuple[st
     warnings = []
     for i, settled in enumerate(curves.settled_currents):
         # The curve is the valve alone, so what counts is where the record held it alone.
-        alone = np.all(np.delete(holds, i, axis=1) == 0.0, axis=1)
+        alone = others_shut(holds, i)
         if not np.any(alone):
             continue
         held = float(np.max(holds[alone, i]))

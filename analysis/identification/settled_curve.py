@@ -185,6 +185,11 @@ class _Target:
     weights: np.ndarray
 
 
+def others_shut(u, index: int) -> np.ndarray:
+    """(N,) True where every input of ``u`` (N, inputs) but ``index`` is shut (zero)."""
+    return np.all(np.delete(u, index, axis=1) == 0.0, axis=1)
+
+
 def hold_runs(u) -> tuple[np.ndarray, np.ndarray]:
     """(first sample, end) of each hold of ``u`` (N, inputs): a run of unchanged currents."""
     change = np.flatnonzero(np.any(np.diff(u, axis=0) != 0.0, axis=1)) + 1
@@ -312,10 +317,7 @@ def fit_static_curves(
         from_sections=tuple(i in sections for i in range(inputs)),
         section_levels=in_sections,
         unread_section_levels=unread,
-        settled_currents=tuple(
-            u[(u[:, i] > 0.0) & np.all(np.delete(u, i, axis=1) == 0.0, axis=1), i]
-            for i in range(inputs)
-        ),
+        settled_currents=tuple(u[(u[:, i] > 0.0) & others_shut(u, i), i] for i in range(inputs)),
     )
 
 

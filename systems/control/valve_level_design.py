@@ -46,7 +46,7 @@ ARRANGEMENTS = ("split_range", "independent")
 # show the curve's flat top (the datasheet range the design knows; assets/pneumatic.yaml).
 TOP_CURRENT_A = 0.190
 # Equal parts of a valve's range that each block of its levels visits once (``_stratified``).
-STRATA = 8
+_STRATA = 8
 # The least share of the holds inside the intervals each valve gets (``_width_share``).
 MIN_TURN_SHARE = 0.2
 
@@ -99,7 +99,7 @@ def random_level_currents(
     return np.repeat(levels, holds, axis=0)[:samples].T
 
 
-def _stratified(rng, count: int, strata: int = STRATA) -> np.ndarray:
+def _stratified(rng, count: int, strata: int = _STRATA) -> np.ndarray:
     """``count`` fractions of the range, uniform, in blocks that each visit every stratum once.
 
     Each block of ``strata`` levels is one uniform draw from each of ``strata`` equal parts of
@@ -219,6 +219,14 @@ def targeted_level_currents(
     return _turns(turns, levels, covering, from_above, tops, others, hold)[:, :samples]
 
 
+def top_eighth_floor(top_current_a):
+    """The lowest current (A) of a valve's top eighth, which the design holds first.
+
+    Past its highest settled level a curve is only extrapolated (``_gap_filling``).
+    """
+    return top_current_a * (1.0 - 1.0 / _STRATA)
+
+
 def _width_share(intervals: np.ndarray, tops: np.ndarray) -> float:
     """The inlet's share of the holds inside the intervals: its interval's width over both.
 
@@ -280,10 +288,10 @@ def _gap_filling(settled, interval_tops, tops, count: int) -> tuple[np.ndarray, 
     unseen_tops = [
         valve
         for valve, (near, top) in enumerate(zip(points, tops, strict=True))
-        if near[0] < top and near[-2] < top * (1.0 - 1.0 / STRATA)
+        if near[0] < top and near[-2] < top_eighth_floor(top)
     ][:count]
     for k, valve in enumerate(unseen_tops):
-        valves[k], currents[k] = valve, tops[valve] * (1.0 - 0.5 / STRATA)
+        valves[k], currents[k] = valve, tops[valve] * (1.0 - 0.5 / _STRATA)
         points[valve].insert(-1, currents[k])
     for k in range(len(unseen_tops), count):
         gaps = [np.diff(p) / top for p, top in zip(points, tops, strict=True)]

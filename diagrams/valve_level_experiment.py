@@ -51,6 +51,7 @@ def run_sequential_experiment(
     coverage_share: float = 0.0,
     other_valve_currents_a: tuple[float, float] = (0.0, 0.0),
     tops_from_long_holds: bool = False,
+    cover_under_sections: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, SimulationRun, list[np.ndarray]]:
     """``run_two_valve_experiment`` with samples ``targeted`` designed from the record before them.
 
@@ -81,6 +82,8 @@ def run_sequential_experiment(
             (as there).
         tops_from_long_holds: a valve's top eighth counts as seen only where a hold as long
             as ``hold_s`` showed it (``tops_seen_by_long_holds``).
+        cover_under_sections: a valve held with the other open gets its holds over the curve
+            from its interval's lowest start up (``targeted_level_currents``).
 
     Returns:
         (currents as applied (2, N), fused height (N,), the run, each round's intervals (A)).
@@ -125,6 +128,7 @@ def run_sequential_experiment(
             other_valve_currents_a,
             settled,
             least_inside,
+            cover_under_sections,
         )
     applied, fused, run = run_two_valve_experiment(config, currents, sample_period_s)
     for earlier in seen:

@@ -275,6 +275,41 @@ def test_an_interval_reaching_the_top_current_leaves_that_valve_no_gap():
     assert stretch.shape == (2, 600)
 
 
+def test_a_valve_held_with_the_other_open_is_covered_from_its_intervals_lowest_start():
+    # The outlet's interval spans 0.05-0.17 A, and its holds inside keep the inlet open at
+    # 0.19 A: sections, none a level of its curve alone.
+    intervals, others = ((0.06, 0.10), (0.05, 0.17)), (0.0, 0.19)
+    settled = ((0.12, 0.15, 0.175), ())
+    tops = np.array(TOPS)
+
+    def alone_outlet_levels(cover_under_sections):
+        stretch = targeted_level_currents(
+            3000, TS, TOPS, intervals, 6.0, 0, 0.4, others, settled, (0, 0), cover_under_sections
+        )
+        firsts, levels = _holds(stretch, 1)
+        alone = [np.all(stretch[0, first + 1 : first + 60] == 0.0) for first in firsts]
+        return np.sort(levels[alone])
+
+    # 50 holds, 20 over the curves. Counted from the interval's top, the outlet's curve has no
+    # gap but 0.17-0.18 A, and it gets one hold there; the other 19 go to the inlet.
+    valves, currents = _gap_filling(settled, np.array([0.10, 0.17]), tops, 20)
+    np.testing.assert_allclose(alone_outlet_levels(False), currents[valves == 1])
+    assert np.sum(valves == 1) == 1 and currents[valves == 1][0] > 0.17
+    # From the interval's lowest start its 0.05-0.18 A is the widest gap (72 % of its range):
+    # 16 of the 20 go to the outlet, all below the interval's top, with the inlet shut.
+    valves, currents = _gap_filling(settled, np.array([0.10, 0.05]), tops, 20)
+    np.testing.assert_allclose(alone_outlet_levels(True), np.sort(currents[valves == 1]))
+    assert np.sum(valves == 1) == 16 and np.all(currents[valves == 1] < 0.17)
+    # A valve probed with the other shut is covered from its interval's top as before.
+    shut = targeted_level_currents(
+        3000, TS, TOPS, intervals, 6.0, 0, 0.4, (0.0, 0.0), settled, (0, 0), True
+    )
+    np.testing.assert_array_equal(
+        shut,
+        targeted_level_currents(3000, TS, TOPS, intervals, 6.0, 0, 0.4, (0.0, 0.0), settled),
+    )
+
+
 def test_other_valve_currents_hold_the_other_valve_open_and_keep_both_approaches():
     other = 0.15
     currents = targeted_level_currents(8000, TS, TOPS, INTERVALS, 6.0, 0, 0.0, (0.0, other))

@@ -124,6 +124,7 @@ def targeted_level_currents(
     other_valve_currents_a: tuple[float, float] = (0.0, 0.0),
     settled_currents_a: tuple = ((), ()),
     least_inside: tuple[int, int] = (0, 0),
+    cover_under_sections: bool = False,
 ) -> np.ndarray:
     """(2, samples) currents (A): the valves' holds inside their starting currents' intervals.
 
@@ -167,6 +168,11 @@ def targeted_level_currents(
             say (as many as there are, shared in proportion, when the two ask for more): a
             section needs its levels (``section_start.MIN_SECTION_LEVELS``) even when the
             other valve's interval is the wider.
+        cover_under_sections: a valve held with the other open gets its holds over the curve
+            from its interval's lowest start up, not from its highest: those holds inside the
+            interval are a section's and show no level of its curve alone, so an interval
+            reaching the curve's top (a start the record so far places anywhere) would leave
+            the whole curve unshown. False: from the highest, bit for bit the design without it.
 
     Raises:
         ValueError: naming the argument out of range.
@@ -200,8 +206,12 @@ def targeted_level_currents(
     covering = np.floor((order + 1) * coverage_share) - np.floor(order * coverage_share) == 1
     turns = np.empty(count, dtype=int)
     levels = np.zeros(count)
+    sectioned = cover_under_sections & (others > 0.0)
     turns[covering], levels[covering] = _gap_filling(
-        settled_currents_a, intervals[:, 1], tops, int(covering.sum())
+        settled_currents_a,
+        np.where(sectioned, intervals[:, 0], intervals[:, 1]),
+        tops,
+        int(covering.sum()),
     )
     # The start the record so far places worse gets more of the holds inside the intervals.
     inside_count = int((~covering).sum())
@@ -264,20 +274,21 @@ def _interleaved(count: int, inlet_share: float) -> np.ndarray:
     return turns
 
 
-def _gap_filling(settled, interval_tops, tops, count: int) -> tuple[np.ndarray, np.ndarray]:
+def _gap_filling(settled, floors, tops, count: int) -> tuple[np.ndarray, np.ndarray]:
     """(valves, currents) of ``count`` holds: unseen tops first, then the widest gaps' middles.
 
-    A valve none of whose settled levels (nor its interval) reaches the top eighth of its range
+    A valve none of whose settled levels (nor its floor) reaches the top eighth of its range
     gets the first hold there, in its middle, the inlet before the outlet. Then a valve's gaps
-    are those between its ``interval_tops``, its ``tops`` and the currents ``settled`` so far
-    between them (its curve's stretches no settled level has shown); the widest of both valves,
-    as fractions of each one's top current, gets the next hold, in its middle. A valve whose
-    interval reaches its top current has no gap; when neither has one, the hold is at the top
-    current (the curve's flat end).
+    are those between its ``floors`` (where its curve is shown otherwise below: its interval's
+    top, whose holds show it), its ``tops`` and the currents ``settled`` so far between them
+    (its curve's stretches no settled level has shown); the widest of both valves, as fractions
+    of each one's top current, gets the next hold, in its middle. A valve whose floor is its
+    top current has no gap; when neither has one, the hold is at the top current (the curve's
+    flat end).
     """
     points = [
         sorted({low, top, *(c for c in np.asarray(seen, float) if low < c < top)})
-        for seen, low, top in zip(settled, interval_tops, tops, strict=True)
+        for seen, low, top in zip(settled, floors, tops, strict=True)
     ]
     valves, currents = np.zeros(count, dtype=int), np.zeros(count)
     # Past a curve's highest settled level a fit only extrapolates (a saturation it never saw),

@@ -118,7 +118,7 @@ def pneumatic_record(config, args, seed):
         applied, height_m, run = run_two_valve_experiment(config, currents, period_s)
         rounds = []
     else:
-        split = round(args.estimation * samples)
+        split = estimation_samples(samples, args)
         first = round((1.0 - args.targeted_share) * split)
 
         def start_intervals_a(u_a, y):
@@ -208,7 +208,7 @@ def valve_figures(fit, parameters) -> dict:
 
 def measure_record(u, y, period_s, parameters, args) -> dict:
     """The Hammerstein fit and the linear baselines on one record, judged against the truth."""
-    split = round(args.estimation * u.shape[0])
+    split = estimation_samples(u.shape[0], args)
     u_est, y_est = u[:split], y[:split]
 
     def held_out_fit(model) -> float:
@@ -290,9 +290,14 @@ def oracle_figures(u, true_height, period_s, parameters, args) -> dict:
     scatters by a tenth of a millimetre, a tenth of the outlet's whole steady lift), not the
     fit's or the design's. The design still read only the cameras.
     """
-    split = round(args.estimation * u.shape[0])
+    split = estimation_samples(u.shape[0], args)
     fit = fitted_hammerstein(u[:split], true_height[:split], period_s, args)
     return {"valves": valve_figures(fit, parameters), "warnings": list(fit.warnings)}
+
+
+def estimation_samples(samples: int, args) -> int:
+    """The record's first samples the fits read (--estimation of them); the rest is held out."""
+    return round(args.estimation * samples)
 
 
 def fitted_hammerstein(u_est, y_est, period_s, args):

@@ -279,12 +279,12 @@ def _gap_filling(settled, floors, tops, count: int) -> tuple[np.ndarray, np.ndar
 
     A valve none of whose settled levels (nor its floor) reaches the top eighth of its range
     gets the first hold there, in its middle, the inlet before the outlet. Then a valve's gaps
-    are those between its ``floors`` (where its curve is shown otherwise below: its interval's
-    top, whose holds show it), its ``tops`` and the currents ``settled`` so far between them
-    (its curve's stretches no settled level has shown); the widest of both valves, as fractions
-    of each one's top current, gets the next hold, in its middle. A valve whose floor is its
-    top current has no gap; when neither has one, the hold is at the top current (the curve's
-    flat end).
+    are those between its ``floors`` (below which its curve needs no hold here: its interval's
+    top, whose holds show it, or its lowest start where those holds are a section's), its
+    ``tops`` and the currents ``settled`` so far between them (its curve's stretches no settled
+    level has shown); the widest of both valves, as fractions of each one's top current, gets
+    the next hold, in its middle. A valve whose floor is its top current has no gap; when
+    neither has one, the hold is at the top current (the curve's flat end).
     """
     points = [
         sorted({low, top, *(c for c in np.asarray(seen, float) if low < c < top)})

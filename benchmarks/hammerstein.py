@@ -129,6 +129,7 @@ def pneumatic_record(config, args, seed):
                 period_s,
                 input_delay_samples=args.delay,
                 read_sections=any(args.other_valve_ma),
+                settle_by_holds=args.settle_by_holds,
             )
             return fit.starting_current_spread(), fit.settled_currents or ((), ())
 
@@ -313,6 +314,7 @@ def fitted_hammerstein(u_est, y_est, period_s, args):
         output_unit="m",
         # A designed record's sections (--other-valve-ma) are read; a random one has none.
         read_sections=any(args.other_valve_ma),
+        settle_by_holds=args.settle_by_holds,
     )
 
 
@@ -363,6 +365,7 @@ def measure(args) -> dict:
         "order": args.order,
         "input_delay_samples": args.delay,
         "map_segments": args.segments,
+        "settle_by_holds": args.settle_by_holds,
         "plant_starts_ma": [
             a_to_ma(getattr(parameters, name).starting_current_a) for name in VALVES
         ],
@@ -451,6 +454,12 @@ def main() -> None:
         action="store_true",
         help="a valve whose targeted holds keep the other open (--other-valve-ma) gets its "
         "holds over the curve from its interval's lowest start up, not its highest",
+    )
+    parser.add_argument(
+        "--settle-by-holds",
+        action="store_true",
+        help="every fit (the design's rounds' too) reads where each hold settled from the hold "
+        "itself (hold_settling), not four time constants of its ARX model's slowest pole",
     )
     parser.add_argument(
         "--oracle-true-height",

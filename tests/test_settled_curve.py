@@ -184,9 +184,14 @@ def test_settled_currents_are_where_each_valve_alone_was_open():
     np.testing.assert_array_equal(found.settled_currents[1], [0.1, 0.19])
 
 
-def test_with_settled_holds_the_hammerstein_fit_finds_the_planted_curves_and_poles():
+@pytest.mark.parametrize("settle_by_holds", [False, True])
+def test_with_settled_holds_the_hammerstein_fit_finds_the_planted_curves_and_poles(
+    settle_by_holds,
+):
     planted, u, y = _planted_hammerstein_record()
-    fit = estimate_hammerstein(u, y, 2, TS, input_unit="A", output_unit="m")
+    fit = estimate_hammerstein(
+        u, y, 2, TS, input_unit="A", output_unit="m", settle_by_holds=settle_by_holds
+    )
     assert fit.converged, fit.message
     model = fit.model
     grid = np.linspace(0.0, 0.19, 381)

@@ -40,6 +40,7 @@ from maskless.analysis.identification.hammerstein_problem import (
     MAX_START,
     HammersteinProblem,
 )
+from maskless.analysis.identification.hold_settling import settled_levels_by_holds
 from maskless.analysis.identification.profile_interval import CHI2_95
 from maskless.analysis.identification.settled_curve import (
     enough_levels,
@@ -182,6 +183,7 @@ def estimate_hammerstein(
     output_unit: str = "",
     max_evaluations: int = 3000,
     read_sections: bool = False,
+    settle_by_holds: bool = False,
 ) -> HammersteinFit:
     """A Hammerstein model (or, with ``linear``, a linear one) by output-error prediction error.
 
@@ -199,6 +201,8 @@ def estimate_hammerstein(
         read_sections: take a valve's start from a section of the record where one was
             designed (``settled_curve.fit_static_curves``); its holds then stay out of the
             dynamics' criterion too.
+        settle_by_holds: read where each hold settled from the hold itself
+            (``hold_settling``), not a fixed time after it began.
 
     Returns:
         The fit: the lowest cost of the searches from the best few starting guesses, with each
@@ -214,7 +218,7 @@ def estimate_hammerstein(
     curves, slowest, counted = (
         (None, None, None)
         if linear
-        else _settled_curves(u, y, order, input_delay_samples, read_sections)
+        else _settled_curves(u, y, order, input_delay_samples, read_sections, settle_by_holds)
     )
     problem = HammersteinProblem(
         u, y, order, map_segments, input_delay_samples, linear, curves, slowest, counted
@@ -405,11 +409,12 @@ def held_out_simulation(model: HammersteinModel, u, part: slice) -> np.ndarray:
     return model.simulate(u)[part]
 
 
-def _settled_curves(u, y, order, delay, read_sections):
+def _settled_curves(u, y, order, delay, read_sections, settle_by_holds=False):
     """(the settled holds' static curves (``settled_curve``), the slowest pole's radius, counted).
 
     A hold has settled ``_SETTLE_TIME_CONSTANTS`` time constants of the slowest pole of the
-    record's ARX model after it began. ``counted`` (N,) are the samples the dynamics are fitted
+    record's ARX model after it began, or with ``settle_by_holds`` where the hold itself shows
+    it (``hold_settling``). ``counted`` (N,) are the samples the dynamics are fitted
     on: all but the holds of the sections (``section_start``), each from the sample before it
     (an approach) to one settling time after it, where no sum of the curves describes the plant;
     None when all count. (None, None, None) if too few holds settled.
@@ -420,7 +425,9 @@ def _settled_curves(u, y, order, delay, read_sections):
     if not slowest < 1.0:
         return None, None, None
     settle = _settle_samples(slowest)
-    levels = settled_levels(u, y, settle, max(1, settle // 8))
+    levels = (settled_levels_by_holds if settle_by_holds else settled_levels)(
+        u, y, settle, max(1, settle // 8)
+    )
     if not enough_levels(levels.currents):
         return None, None, None
     curves = fit_static_curves(levels, MAX_START, MAX_SATURATION, read_sections)

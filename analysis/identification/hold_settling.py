@@ -39,7 +39,11 @@ Here a hold settles at the fixed time, or later where its own output shows it ha
 
 import numpy as np
 
-from maskless.analysis.identification.settled_curve import SettledLevels, hold_runs
+from maskless.analysis.identification.settled_curve import (
+    SettledLevels,
+    hold_runs,
+    levels_from,
+)
 
 # A hold's output has settled within this fraction of its step (e^-4, the fixed rule's 2 %) ...
 _STEP_FRACTION = 0.02
@@ -76,15 +80,7 @@ def settled_levels_by_holds(u, y, settle_samples: int, min_tail_samples: int) ->
         if settled is not None:
             kept.append(hold)
             firsts.append(settled)
-    kept, firsts = np.array(kept, dtype=int), np.array(firsts, dtype=int)
-    return SettledLevels(
-        currents=u[starts[kept]].reshape(kept.size, u.shape[1]),
-        outputs=np.array([y[f : ends[k]].mean() for k, f in zip(kept, firsts, strict=True)]),
-        samples=ends[kept] - firsts,
-        hold_currents=u[starts],
-        level_holds=kept,
-        hold_first_samples=starts,
-    )
+    return levels_from(u, y, kept, firsts)
 
 
 def window_averages(y, window: int) -> np.ndarray:

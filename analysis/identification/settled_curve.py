@@ -204,10 +204,24 @@ def settled_levels(u, y, settle_samples: int, min_tail_samples: int) -> SettledL
     starts, ends = hold_runs(u)
     tail = max(1, min_tail_samples)
     kept = np.flatnonzero(ends - starts - settle_samples >= tail)
+    return levels_from(u, y, kept, starts[kept] + settle_samples)
+
+
+def levels_from(u, y, kept, settled_samples) -> SettledLevels:
+    """The ``SettledLevels`` of the holds ``kept`` (M,), each from its settled sample on.
+
+    ``kept`` are indices into ``hold_runs(u)``; each level is its hold's mean output from its
+    sample in ``settled_samples`` (M,) to the hold's end.
+    """
+    starts, ends = hold_runs(u)
+    kept = np.asarray(kept, dtype=int)
+    settled_samples = np.asarray(settled_samples, dtype=int)
     return SettledLevels(
         currents=u[starts[kept]].reshape(kept.size, u.shape[1]),
-        outputs=np.array([y[starts[k] + settle_samples : ends[k]].mean() for k in kept]),
-        samples=np.array([ends[k] - starts[k] - settle_samples for k in kept], dtype=int),
+        outputs=np.array(
+            [y[f : ends[k]].mean() for k, f in zip(kept, settled_samples, strict=True)]
+        ),
+        samples=ends[kept] - settled_samples,
         hold_currents=u[starts],
         level_holds=kept,
         hold_first_samples=starts,

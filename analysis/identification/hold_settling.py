@@ -80,14 +80,13 @@ def settled_levels_by_holds(u, y, settle_samples: int, min_tail_samples: int) ->
         if settled is not None:
             kept.append(hold)
             firsts.append(settled)
-    return levels_from(u, y, kept, firsts)
+    return levels_from(u, y, (starts, ends), kept, firsts)
 
 
 def window_averages(y, window: int) -> np.ndarray:
     """(N,) the mean of ``y``'s last ``window`` samples at each sample; NaN for the first few."""
-    sums = np.concatenate([[0.0], np.cumsum(y)])
     averages = np.full(y.size, np.nan)
-    averages[window - 1 :] = (sums[window:] - sums[:-window]) / window
+    averages[window - 1 :] = np.lib.stride_tricks.sliding_window_view(y, window).mean(axis=1)
     return averages
 
 

@@ -204,16 +204,16 @@ def settled_levels(u, y, settle_samples: int, min_tail_samples: int) -> SettledL
     starts, ends = hold_runs(u)
     tail = max(1, min_tail_samples)
     kept = np.flatnonzero(ends - starts - settle_samples >= tail)
-    return levels_from(u, y, kept, starts[kept] + settle_samples)
+    return levels_from(u, y, (starts, ends), kept, starts[kept] + settle_samples)
 
 
-def levels_from(u, y, kept, settled_samples) -> SettledLevels:
+def levels_from(u, y, runs, kept, settled_samples) -> SettledLevels:
     """The ``SettledLevels`` of the holds ``kept`` (M,), each from its settled sample on.
 
-    ``kept`` are indices into ``hold_runs(u)``; each level is its hold's mean output from its
-    sample in ``settled_samples`` (M,) to the hold's end.
+    ``runs`` are ``hold_runs(u)`` and ``kept`` indices into them; each level is its hold's mean
+    output from its sample in ``settled_samples`` (M,) to the hold's end.
     """
-    starts, ends = hold_runs(u)
+    starts, ends = runs
     kept = np.asarray(kept, dtype=int)
     settled_samples = np.asarray(settled_samples, dtype=int)
     return SettledLevels(

@@ -16,7 +16,8 @@ instead over the rest of the curves: to the top eighth of a valve's range where 
 has reached it, then to the widest stretch of either curve, above its interval, that no settled
 level has shown (with --cover-under-sections, a valve whose targeted holds keep the other
 open counts that stretch from its interval's lowest start, not its highest: those holds are a
-section's and show no level of its curve alone). The rest of the record, the held-out part
+section's and show no level of its curve alone; with --section-block those holds come in one run
+at each round's start). The rest of the record, the held-out part
 included, is the same as without it, and the total length the same. F = 0 (the default) is the
 random design alone, bit for bit.
 
@@ -128,8 +129,7 @@ def pneumatic_record(config, args, seed):
                 args.order,
                 period_s,
                 input_delay_samples=args.delay,
-                read_sections=any(args.other_valve_ma),
-                settle_by_holds=args.settle_by_holds,
+                **fit_options(args),
             )
             return fit.starting_current_spread(), fit.settled_currents or ((), ())
 
@@ -147,6 +147,7 @@ def pneumatic_record(config, args, seed):
             tuple(ma_to_a(np.asarray(args.other_valve_ma))),
             args.tops_from_long_holds,
             args.cover_under_sections,
+            args.section_block,
         )
         rounds = [a_to_ma(found).tolist() for found in intervals]
     # mA: the model's map is read in the record's units.
@@ -312,10 +313,20 @@ def fitted_hammerstein(u_est, y_est, period_s, args):
         input_delay_samples=args.delay,
         input_unit="mA",
         output_unit="m",
-        # A designed record's sections (--other-valve-ma) are read; a random one has none.
-        read_sections=any(args.other_valve_ma),
-        settle_by_holds=args.settle_by_holds,
+        **fit_options(args),
     )
+
+
+def fit_options(args) -> dict:
+    """The settled levels' reading the design rounds and the fits share (the flags)."""
+    return {
+        # A designed record's sections (--other-valve-ma) are read; a random one has none.
+        "read_sections": any(args.other_valve_ma),
+        "settle_by_holds": args.settle_by_holds,
+        "settle_from_maps": args.settle_from_maps,
+        # A section held in one run is read from its levels approached from within it.
+        "sections_from_within": args.section_block,
+    }
 
 
 def measure(args) -> dict:
@@ -334,6 +345,7 @@ def measure(args) -> dict:
             "other_valve_ma": list(args.other_valve_ma),
             "tops_from_long_holds": args.tops_from_long_holds,
             "cover_under_sections": args.cover_under_sections,
+            "section_block": args.section_block,
         }
     runs = []
     started = time.perf_counter()
@@ -366,6 +378,7 @@ def measure(args) -> dict:
         "input_delay_samples": args.delay,
         "map_segments": args.segments,
         "settle_by_holds": args.settle_by_holds,
+        "settle_from_maps": args.settle_from_maps,
         "plant_starts_ma": [
             a_to_ma(getattr(parameters, name).starting_current_a) for name in VALVES
         ],
@@ -460,6 +473,19 @@ def main() -> None:
         action="store_true",
         help="every fit (the design's rounds' too) reads where each hold settled from the hold "
         "itself (hold_settling), not four time constants of its ARX model's slowest pole",
+    )
+    parser.add_argument(
+        "--settle-from-maps",
+        action="store_true",
+        help="every fit takes its settling time from the ARX model through each valve's "
+        "piecewise-linear map, not a linear ARX model",
+    )
+    parser.add_argument(
+        "--section-block",
+        action="store_true",
+        help="a valve whose targeted holds keep the other open (--other-valve-ma) gets them in "
+        "one run at each round's start, and every fit reads its section's start from the "
+        "levels approached from within it",
     )
     parser.add_argument(
         "--oracle-true-height",

@@ -52,6 +52,7 @@ def run_sequential_experiment(
     other_valve_currents_a: tuple[float, float] = (0.0, 0.0),
     tops_from_long_holds: bool = False,
     cover_under_sections: bool = False,
+    section_block: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, SimulationRun, list[np.ndarray]]:
     """``run_two_valve_experiment`` with samples ``targeted`` designed from the record before them.
 
@@ -84,6 +85,8 @@ def run_sequential_experiment(
             as ``hold_s`` showed it (``tops_seen_by_long_holds``).
         cover_under_sections: a valve held with the other open gets its holds over the curve
             from its interval's lowest start up (``targeted_level_currents``).
+        section_block: a valve held with the other open gets its holds inside the interval in
+            one run at each round's start (``targeted_level_currents``).
 
     Returns:
         (currents as applied (2, N), fused height (N,), the run, each round's intervals (A)).
@@ -129,6 +132,7 @@ def run_sequential_experiment(
             settled,
             least_inside,
             cover_under_sections,
+            section_block,
         )
     applied, fused, run = run_two_valve_experiment(config, currents, sample_period_s)
     for earlier in seen:

@@ -10,6 +10,7 @@ import pytest
 from maskless.analysis.identification.hammerstein import _section_warnings
 from maskless.analysis.identification.section_start import (
     MIN_SECTION_LEVELS,
+    approached_within,
     find_sections,
     play_operator,
     section_start,
@@ -173,3 +174,79 @@ def test_sections_are_read_only_when_asked():
     # ordinary levels of the curves' fit.
     curves = fit_static_curves(_two_valve_levels(0, True), 0.6, 1.2)
     assert not curves.section_levels.any() and curves.from_sections == (False, False)
+
+
+def _section_with_refills(seed, refilled_below=0.06, refilled_every=False):
+    """``_two_valve_levels``'s section, some levels approached from the inlet alone.
+
+    Each hold is 100 samples, each approach of the section's one sample. A level whose hold
+    followed the inlet alone (outlet currents within ``refilled_below`` under the start, or all
+    with ``refilled_every``) reads 0.1 low, as a bladder filled from lower reads before it
+    settles: there it looks like the outlet opening early.
+    """
+    rng = np.random.default_rng(seed)
+    alone = np.linspace(0.0, 1.0, 21)
+    holds = [(a, 0.0) for a in alone] + [(0.0, a) for a in alone]
+    lengths, refilled = [100] * 42, [False] * 42
+    for k, outlet in enumerate(START + np.linspace(-0.1, 0.1, 12)):
+        refill = refilled_every or START - refilled_below < outlet < START
+        if refill:
+            holds.append((0.5, 0.0))
+            lengths.append(100)
+            refilled.append(False)
+        holds += [(1.0, float(k % 2)), (1.0, outlet)]
+        lengths += [1, 100]
+        refilled += [False, refill]
+    holds, lengths = np.array(holds), np.array(lengths)
+    level_holds = np.flatnonzero(lengths > 1)
+    currents = holds[level_holds]
+    spool = play_operator(holds[:, 1], HALF_WIDTH)[level_holds]
+    gentle = currents[:, 0] == 0.0
+    outputs = 2.0 * currents[:, 0] ** 2 + np.where(gentle, -0.05, SLOPE) * np.maximum(
+        spool - START, 0.0
+    )
+    outputs -= 0.1 * np.array(refilled)[level_holds]
+    noisy = outputs + 0.01 * rng.standard_normal(outputs.size)
+    first_samples = np.concatenate([[0], np.cumsum(lengths)[:-1]])
+    levels = SettledLevels(currents, noisy, np.ones(noisy.size), holds, level_holds, first_samples)
+    return levels, np.array(refilled)[level_holds]
+
+
+def test_a_section_level_counts_only_where_the_sections_own_hold_came_before():
+    levels, refilled = _section_with_refills(0)
+    mask = find_sections(levels.currents)[1]
+    kept = approached_within(
+        levels.hold_currents, levels.hold_first_samples, levels.level_holds, mask, 1
+    )
+    # Past the one-sample approaches: the refilled three, the inlet alone at its top (read as
+    # one of the section's: the outlet shut), which followed the inlet lower, and the section's
+    # first, which followed the outlet alone, are left out.
+    top_inlet_alone = (levels.currents[:, 0] == 1.0) & (levels.currents[:, 1] == 0.0)
+    first = np.flatnonzero(mask & ~top_inlet_alone)[0]
+    # Before its one-sample approach: the outlet alone, the inlet shut.
+    assert levels.hold_currents[levels.level_holds[first] - 2, 0] == 0.0
+    expected = mask & ~refilled & ~top_inlet_alone
+    expected[first] = False
+    np.testing.assert_array_equal(kept, expected)
+    assert refilled.sum() == 3 and kept.sum() == mask.sum() - 5
+
+
+def test_levels_refilled_from_outside_the_section_place_its_start_low_unless_left_out():
+    for seed in range(4):
+        levels, _ = _section_with_refills(seed)
+        every = fit_static_curves(levels, 0.6, 1.2, read_sections=True)
+        within = fit_static_curves(levels, 0.6, 1.2, read_sections=True, sections_from_within=True)
+        assert within.from_sections == (False, True)
+        assert abs(within.starts[1] - START) < 0.01
+        assert within.start_intervals[1][0] <= START <= within.start_intervals[1][1]
+        assert every.starts[1] - START < -0.03
+        # Left out of the section, they stay out of the curves' fit too.
+        np.testing.assert_array_equal(within.section_levels, every.section_levels)
+
+
+def test_a_section_with_too_few_levels_approached_from_within_is_read_whole():
+    levels, _ = _section_with_refills(0, refilled_every=True)
+    every = fit_static_curves(levels, 0.6, 1.2, read_sections=True)
+    within = fit_static_curves(levels, 0.6, 1.2, read_sections=True, sections_from_within=True)
+    np.testing.assert_array_equal(within.starts, every.starts)
+    np.testing.assert_array_equal(within.start_intervals, every.start_intervals)

@@ -413,3 +413,52 @@ def test_a_stretch_cut_short_ends_inside_an_interval_never_over_the_curves():
     over = levels > np.array(INTERVALS)[valves, 1]
     assert over.sum() == 3 and not over[-1]
     assert levels[-1] >= np.array(INTERVALS)[valves[-1], 0]
+
+
+def _hold_table(stretch):
+    """(valve, level, from above, the other valve's current) per 60-sample hold of ``stretch``."""
+    firsts = np.arange(0, stretch.shape[1], 60)
+    last = np.minimum(firsts + 59, stretch.shape[1] - 1)
+    # Here only the outlet's holds keep the other valve open: an open outlet is its hold.
+    valves = (stretch[1, last] > 0.0).astype(int)
+    return np.column_stack(
+        [
+            valves,
+            stretch[valves, last],
+            # From above (the hold's first sample at the top current), else from below.
+            stretch[valves, firsts] == np.asarray(TOPS)[valves],
+            stretch[1 - valves, last],
+        ]
+    )
+
+
+# 34 and 33.4 holds leave a hold over the curves last once the section's move to the front.
+@pytest.mark.parametrize("samples", [50 * 60, 34 * 60, 33 * 60 + 24])
+def test_a_section_block_holds_the_sections_levels_in_one_run_at_the_stretchs_start(samples):
+    # The outlet's holds inside its interval keep the inlet open at 0.19 A (a section).
+    intervals, others, settled = ((0.06, 0.10), (0.05, 0.17)), (0.0, 0.19), ((0.12,), (0.15,))
+    arguments = (samples, TS, TOPS, intervals, 6.0, 0, 0.25, others, settled, (0, 6), True)
+    interleaved = _hold_table(targeted_level_currents(*arguments))
+    block = _hold_table(targeted_level_currents(*arguments, section_block=True))
+    in_section = interleaved[:, 3] == others[1]
+    count = int(in_section.sum())
+    assert count >= 6 and not np.all(in_section[:count])
+    # The same holds, each approached as before; the section's first, in their own order.
+    np.testing.assert_array_equal(block[:count], interleaved[in_section])
+    assert np.all(block[count:, 3] != others[1])
+    np.testing.assert_array_equal(
+        np.sort(block[count:], axis=0), np.sort(interleaved[~in_section], axis=0)
+    )
+    # The stretch's last hold, cut short where the stretch is not whole holds, is inside an
+    # interval, never over the curves' rest: the inlet's inside holds are those within its
+    # interval, the outlet's those with the inlet open.
+    valve, level, _, other = block[-1]
+    assert (valve == 0 and level <= intervals[0][1]) or (valve == 1 and other == others[1])
+
+
+def test_without_a_section_a_section_block_changes_nothing():
+    arguments = (8000, TS, TOPS, INTERVALS, 6.0, 0, 0.25, (0.0, 0.0), ((0.09,), (0.13,)))
+    np.testing.assert_array_equal(
+        targeted_level_currents(*arguments, section_block=True),
+        targeted_level_currents(*arguments),
+    )

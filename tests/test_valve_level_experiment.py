@@ -57,7 +57,8 @@ def test_a_sequential_design_reads_only_the_record_before_each_round():
     np.testing.assert_array_equal(intervals, [INTERVALS] * 2)
 
 
-def test_a_valve_held_with_the_other_open_gets_a_sections_levels_over_the_rounds():
+@pytest.mark.parametrize("section_block", [False, True])
+def test_a_valve_held_with_the_other_open_gets_a_sections_levels_over_the_rounds(section_block):
     # Section levels need MIN_SECTION_LEVELS distinct currents; with the inlet's interval the
     # wider, the widths alone would give the outlet MIN_TURN_SHARE of each round's holds (2 of
     # 10 here, 4 over two rounds), too few for a section.
@@ -80,6 +81,7 @@ def test_a_valve_held_with_the_other_open_gets_a_sections_levels_over_the_rounds
         0,
         rounds=2,
         other_valve_currents_a=(0.0, 0.15),
+        section_block=section_block,
     )
     # The outlet's holds are those with the inlet held at 0.15 A; each hold is 60 samples.
     firsts = np.arange(200, 1400, 60)
@@ -87,6 +89,13 @@ def test_a_valve_held_with_the_other_open_gets_a_sections_levels_over_the_rounds
     assert np.unique(outlet_levels).size >= MIN_SECTION_LEVELS
     low, high = wide_inlet[1]
     assert np.all((outlet_levels >= low) & (outlet_levels <= high))
+    if not section_block:
+        return
+    # Each round's (10 holds each) section holds come first, in one run.
+    for round_firsts in (firsts[:10], firsts[10:]):
+        in_section = applied[0, round_firsts + 59] == 0.15
+        count = int(in_section.sum())
+        assert count >= 1 and np.all(in_section[:count]) and not in_section[count:].any()
 
 
 @pytest.mark.parametrize(

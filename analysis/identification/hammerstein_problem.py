@@ -313,9 +313,14 @@ class HammersteinProblem:
         openings = openings / openings[-1] if openings[-1] > 0 else np.linspace(0, 1, v.size + 1)
         return b, openings
 
-    def arx_poles(self) -> np.ndarray:
-        """The poles of the record's ARX model (the start of a linear fit)."""
-        theta = self.initial_guesses()[0]
+    def arx_poles(self, map_starts=None) -> np.ndarray:
+        """The poles of the record's ARX model (the start of a linear fit).
+
+        With ``map_starts`` (per input, where its map starts as a fraction of its range), of the
+        ARX model through each input's hat basis from there instead: one least squares, not the
+        best-simulating split over the start grid (``initial_guesses``).
+        """
+        theta = self.initial_guesses()[0] if map_starts is None else self._arx_start(map_starts)
         return np.roots(np.concatenate([[1.0], self.unpack(theta)[0][0]]))
 
     # --- the result -----------------------------------------------------------------------------

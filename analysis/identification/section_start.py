@@ -25,7 +25,15 @@ reads each valve's start from its section alone, here:
   (``profile_interval``), open-ended where the section's levels never reach past the start. A
   section approached from one side only cannot tell a start from a play band's shift of it, and
   its interval is then as wide as the widest play: levels approached alternately from shut and
-  from the top (``targeted_level_currents``) see both edges and separate the two.
+  from the top (``targeted_level_currents``) see both edges and separate the two;
+- a level whose hold followed one with the other valves elsewhere (shut, or at another current)
+  began far from the section and may not have settled: the pneumatic plant's head, filled from
+  207.6 to 225.7 mm with the inlet open, was still 0.02 mm short of its level a minute later (a
+  time constant of about 9 s there; seed 46 of ``benchmarks/hammerstein.py``, true height), and
+  such levels read about 0.13 mm low, about as far as the outlet's first milliampere moves the
+  head there. On the true height that put the outlet's start 8.5-17.2 mA low (seeds 34, 46 and
+  53). ``approached_within`` keeps the levels whose hold the section's own preceded
+  (``targeted_level_currents`` with ``section_block`` holds them in one run).
 """
 
 from dataclasses import dataclass
@@ -94,6 +102,38 @@ def find_sections(currents: np.ndarray) -> dict[int, np.ndarray]:
         if best is not None:
             found[valve] = best[1]
     return found
+
+
+def approached_within(
+    hold_currents: np.ndarray,
+    hold_first_samples: np.ndarray,
+    level_holds: np.ndarray,
+    mask: np.ndarray,
+    valve: int,
+) -> np.ndarray:
+    """(M,) ``mask`` less the levels whose hold was approached from outside their section.
+
+    A level counts where the hold before its own held the other valves at its currents. Holds
+    of one sample are passed over: they are a design's approaches (``targeted_level_currents``
+    pushes the valve to shut or to its top for a sample to choose the edge of its play band).
+    The record's first hold has nothing before it and does not count.
+
+    Args:
+        hold_currents: (H, inputs) every hold's currents, in order.
+        hold_first_samples: (H,) the sample each hold begins at.
+        level_holds: (M,) the hold each settled level ends.
+        mask: (M,) the section's levels.
+        valve: the valve the section is of.
+    """
+    lengths = np.diff(hold_first_samples)
+    others = np.delete(hold_currents, valve, axis=1)
+    kept = np.array(mask, dtype=bool)
+    for level in np.flatnonzero(kept):
+        before = level_holds[level] - 1
+        while before >= 0 and lengths[before] < 2:
+            before -= 1
+        kept[level] = before >= 0 and np.array_equal(others[before], others[level_holds[level]])
+    return kept
 
 
 def section_start(

@@ -65,7 +65,9 @@ import scipy.stats
 from maskless.analysis.identification.grid_least_squares import lowest_sums_of_squares
 from maskless.analysis.identification.profile_interval import CHI2_95, profile_interval
 from maskless.analysis.identification.section_start import (
+    MIN_SECTION_LEVELS,
     PLAY_HALF_WIDTHS,
+    approached_within,
     find_sections,
     play_operator,
     section_start,
@@ -242,7 +244,11 @@ def samples_outside(levels: SettledLevels, chosen: np.ndarray, settle: int, samp
 
 
 def fit_static_curves(
-    levels: SettledLevels, max_start: float, max_saturation: float, read_sections: bool = False
+    levels: SettledLevels,
+    max_start: float,
+    max_saturation: float,
+    read_sections: bool = False,
+    sections_from_within: bool = False,
 ):
     """The ``StaticCurves`` that fit the settled levels best (see the module docstring).
 
@@ -252,8 +258,11 @@ def fit_static_curves(
     designed with sections: ``valve_level_design.targeted_level_currents`` with
     ``other_valve_currents_a``), a valve with a section takes its start from it
     (``section_start``) and those levels stay out of the curves' fit; otherwise a record whose
-    levels repeat on a grid would be read as sections it was never designed to have. Returns
-    None when some input was held at fewer than two distinct levels.
+    levels repeat on a grid would be read as sections it was never designed to have. With
+    ``sections_from_within`` too, a section's start is read from its levels approached from
+    within it (``section_start.approached_within``), all of them where fewer than a section's
+    ``MIN_SECTION_LEVELS`` currents were; the others stay out of the curves' fit all the same.
+    Returns None when some input was held at fewer than two distinct levels.
     """
     u, y = levels.currents, levels.outputs
     inputs = u.shape[1]
@@ -265,7 +274,9 @@ def fit_static_curves(
     fractions = (holds - low) / span
     sections, in_sections, unread = {}, np.zeros(y.size, dtype=bool), 0
     if read_sections:
-        sections, in_sections, unread = _section_starts(levels, fractions, level_holds, max_start)
+        sections, in_sections, unread = _section_starts(
+            levels, fractions, level_holds, max_start, sections_from_within
+        )
     u, y = u[~in_sections], y[~in_sections]
     level_holds = level_holds[~in_sections]
     samples = levels.samples[~in_sections]
@@ -335,7 +346,7 @@ def fit_static_curves(
     )
 
 
-def _section_starts(levels: SettledLevels, fractions, level_holds, max_start):
+def _section_starts(levels: SettledLevels, fractions, level_holds, max_start, from_within):
     """({valve: its ``SectionStart``}, (M,) the levels in any section, sections' levels unread).
 
     ``fractions`` (H, inputs) are every hold's currents as fractions of each input's range and
@@ -354,11 +365,24 @@ def _section_starts(levels: SettledLevels, fractions, level_holds, max_start):
         in_sections |= mask
     if not masks or not enough_levels(levels.currents[~in_sections], fixed_starts=len(masks)):
         return {}, np.zeros(levels.outputs.size, dtype=bool), int(in_sections.sum())
+    if from_within and levels.hold_first_samples is not None:
+        masks = {
+            valve: _within_or_all(levels, level_holds, mask, valve) for valve, mask in masks.items()
+        }
     found = {
         valve: section_start(fractions[:, valve], level_holds, levels.outputs, mask, max_start)
         for valve, mask in masks.items()
     }
     return found, in_sections, 0
+
+
+def _within_or_all(levels: SettledLevels, level_holds, mask, valve) -> np.ndarray:
+    """``mask``'s levels approached from within (``approached_within``), or all where too few."""
+    within = approached_within(
+        levels.hold_currents, levels.hold_first_samples, level_holds, mask, valve
+    )
+    enough = np.unique(levels.currents[within, valve]).size >= MIN_SECTION_LEVELS
+    return within if enough else mask
 
 
 def _sweeps(spool, target, fixed, limits, plays, ends, signs, play_grid=None):

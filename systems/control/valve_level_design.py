@@ -125,6 +125,7 @@ def targeted_level_currents(
     settled_currents_a: tuple = ((), ()),
     least_inside: tuple[int, int] = (0, 0),
     cover_under_sections: bool = False,
+    section_block: bool = False,
 ) -> np.ndarray:
     """(2, samples) currents (A): the valves' holds inside their starting currents' intervals.
 
@@ -173,6 +174,12 @@ def targeted_level_currents(
             interval are a section's and show no level of its curve alone, so an interval
             reaching the curve's top (a start the record so far places anywhere) would leave
             the whole curve unshown. False: from the highest, bit for bit the design without it.
+        section_block: a valve held with the other open gets its holds inside the interval in
+            one run at the stretch's start, so that each after the first begins where the
+            section's last left the plant (``section_start.approached_within``): refilled
+            from a bladder the other holds left low, the pneumatic plant's head came within
+            0.02 mm of a section's level only a minute later. The stretch's last hold stays
+            one inside an interval. False: interleaved, bit for bit the design without it.
 
     Raises:
         ValueError: naming the argument out of range.
@@ -226,7 +233,25 @@ def targeted_level_currents(
         # Each kind of hold alternates its approach on its own, so both kinds see both edges.
         rank[inside], rank[above] = np.arange(inside.size), np.arange(above.size)
     from_above = (rank + rng.integers(2)) % 2 == 1
+    if section_block and np.any(others > 0.0):
+        order = _section_first(~covering & (others > 0.0)[turns], covering)
+        turns, levels, covering, from_above = (
+            a[order] for a in (turns, levels, covering, from_above)
+        )
     return _turns(turns, levels, covering, from_above, tops, others, hold)[:, :samples]
+
+
+def _section_first(in_block: np.ndarray, covering: np.ndarray) -> np.ndarray:
+    """The holds' order with those ``in_block`` first, the rest after, each in its own order.
+
+    Where that leaves a hold over the curves' rest (``covering``) last, the last hold of the
+    others moves to the end: the stretch's last hold may be cut short, and is never one of those.
+    """
+    order = np.concatenate([np.flatnonzero(in_block), np.flatnonzero(~in_block)])
+    if covering[order[-1]] and not covering.all():
+        last = np.flatnonzero(~covering[order])[-1]
+        order = np.append(np.delete(order, last), order[last])
+    return order
 
 
 def top_eighth_floor(top_current_a):

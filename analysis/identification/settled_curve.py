@@ -366,9 +366,7 @@ def _section_starts(levels: SettledLevels, fractions, level_holds, max_start, fr
     if not masks or not enough_levels(levels.currents[~in_sections], fixed_starts=len(masks)):
         return {}, np.zeros(levels.outputs.size, dtype=bool), int(in_sections.sum())
     if from_within and levels.hold_first_samples is not None:
-        masks = {
-            valve: _within_or_all(levels, level_holds, mask, valve) for valve, mask in masks.items()
-        }
+        masks = {valve: _within_or_all(levels, mask, valve) for valve, mask in masks.items()}
     found = {
         valve: section_start(fractions[:, valve], level_holds, levels.outputs, mask, max_start)
         for valve, mask in masks.items()
@@ -376,10 +374,10 @@ def _section_starts(levels: SettledLevels, fractions, level_holds, max_start, fr
     return found, in_sections, 0
 
 
-def _within_or_all(levels: SettledLevels, level_holds, mask, valve) -> np.ndarray:
+def _within_or_all(levels: SettledLevels, mask, valve) -> np.ndarray:
     """``mask``'s levels approached from within (``approached_within``), or all where too few."""
     within = approached_within(
-        levels.hold_currents, levels.hold_first_samples, level_holds, mask, valve
+        levels.hold_currents, levels.hold_first_samples, levels.level_holds, mask, valve
     )
     enough = np.unique(levels.currents[within, valve]).size >= MIN_SECTION_LEVELS
     return within if enough else mask

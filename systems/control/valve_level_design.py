@@ -213,7 +213,9 @@ def targeted_level_currents(
     covering = np.floor((order + 1) * coverage_share) - np.floor(order * coverage_share) == 1
     turns = np.empty(count, dtype=int)
     levels = np.zeros(count)
-    sectioned = cover_under_sections & (others > 0.0)
+    # A valve whose holds inside its interval keep the other open: a section's.
+    held_open = others > 0.0
+    sectioned = cover_under_sections & held_open
     turns[covering], levels[covering] = _gap_filling(
         settled_currents_a,
         np.where(sectioned, intervals[:, 0], intervals[:, 1]),
@@ -233,8 +235,8 @@ def targeted_level_currents(
         # Each kind of hold alternates its approach on its own, so both kinds see both edges.
         rank[inside], rank[above] = np.arange(inside.size), np.arange(above.size)
     from_above = (rank + rng.integers(2)) % 2 == 1
-    if section_block and np.any(others > 0.0):
-        order = _section_first(~covering & (others > 0.0)[turns], covering)
+    if section_block and held_open.any():
+        order = _section_first(~covering & held_open[turns], covering)
         turns, levels, covering, from_above = (
             a[order] for a in (turns, levels, covering, from_above)
         )

@@ -23,10 +23,10 @@ random design alone, bit for bit.
 
 Each record's scenario is seeded with the record's seed, so each carries noise of its own
 (seed 0 is the shipped scenario's record). With --shared-noise every record takes the shipped
-scenario's one seed, as before issue 14's stop 38: the cameras' noise was then the same in every
-record and a population of seeds varied the design alone (the cameras' error, fused estimate
-less true height, correlated 0.91-0.92 between any two of four records of seeds 20-52, and
-0.005 between seeds 20 and 21 seeded each).
+scenario's one seed, as every record did until stop 38 of issue 14: the cameras' noise was then
+the same in every record, and a population of seeds varied the design alone (the cameras'
+error, fused estimate less true height, correlated 0.91-0.92 between any two of four records of
+seeds 20-52; seeded each, 0.005 between seeds 20 and 21).
 
 With --oracle-true-height each record is fitted a second time, on the plant's true head height
 instead of the cameras' estimate (``oracle_true_height`` in the JSON: an oracle, which no user

@@ -19,7 +19,10 @@ open counts that stretch from its interval's lowest start, not its highest: thos
 section's and show no level of its curve alone; with --section-block those holds come in one run
 at each round's start). The rest of the record, the held-out part
 included, is the same as without it, and the total length the same. F = 0 (the default) is the
-random design alone, bit for bit.
+random design alone, bit for bit. A round whose fit found too few settled holds to profile a
+valve's start targets that valve's whole range
+(``valve_level_experiment.designable_intervals``); with --search-spread-rounds it targets the
+joint search's spread instead, as every round did until stop 39 of issue 14.
 
 Each record's scenario is seeded with the record's seed, so each carries noise of its own
 (seed 0 is the shipped scenario's record). With --shared-noise every record takes the shipped
@@ -138,7 +141,11 @@ def pneumatic_record(config, args, seed):
                 input_delay_samples=args.delay,
                 **fit_options(args),
             )
-            return fit.starting_current_spread(), fit.settled_currents or ((), ())
+            # Without settled holds' profile intervals the spread is the joint search's ends,
+            # which the design does not take for an interval (unless --search-spread-rounds).
+            unread = not fit.start_intervals and not args.search_spread_rounds
+            spread = None if unread else fit.starting_current_spread()
+            return spread, fit.settled_currents or ((), ())
 
         applied, height_m, run, intervals = run_sequential_experiment(
             config,
@@ -389,6 +396,7 @@ def measure(args) -> dict:
         "settle_by_holds": args.settle_by_holds,
         "settle_from_maps": args.settle_from_maps,
         "noise_per_record": not args.shared_noise,
+        "search_spread_rounds": args.search_spread_rounds,
         "plant_starts_ma": [
             a_to_ma(getattr(parameters, name).starting_current_a) for name in VALVES
         ],
@@ -508,6 +516,13 @@ def main() -> None:
         action="store_true",
         help="every record takes the shipped scenario's seed (the same camera noise in each), "
         "not its own seed (the default)",
+    )
+    parser.add_argument(
+        "--search-spread-rounds",
+        action="store_true",
+        help="a design round whose fit has no settled holds' interval targets its joint "
+        "search's spread, as every round did until stop 39 of issue 14, not the valve's whole "
+        "range (the default)",
     )
     parser.add_argument(
         "--seeds", type=int, nargs="+", default=[0], help="one record and fit per seed"

@@ -61,9 +61,11 @@ def run_sequential_experiment(
     valve's starting-current interval ((2, 2) in A) and the currents (A) at which its settled
     holds showed its curve alone (``HammersteinFit.settled_currents``), and the part gets
     ``targeted_level_currents`` from them (the intervals clipped to [0, top]; seeded ``seed``
-    plus the round). A valve held with the other open (``other_valve_currents_a``) gets its
-    share of a section's ``MIN_SECTION_LEVELS`` in every round, whatever the widths say: with
-    fewer the fit has no section, and reads that valve's start from the curves alone.
+    plus the round). A round whose fit has no interval yet (``None``: too few of its holds
+    settled to profile a start) gets each valve's whole range instead
+    (``designable_intervals``). A valve held with the other open (``other_valve_currents_a``)
+    gets its share of a section's ``MIN_SECTION_LEVELS`` in every round, whatever the widths
+    say: with fewer the fit has no section, and reads that valve's start from the curves alone.
     Then the whole record runs once more. The same scenario and seed make every run's first
     samples the same, so the design read nothing the returned record does not hold; a run whose
     first samples differ raises RuntimeError.
@@ -117,7 +119,7 @@ def run_sequential_experiment(
             settled = tops_seen_by_long_holds(
                 settled, applied.T, tuple(tops), hold_s, sample_period_s
             )
-        found = np.clip(np.asarray(spread, float), 0.0, tops[:, None])
+        found = designable_intervals(spread, tuple(tops))
         intervals.append(found)
         seen.append(fused)
         currents[:, begin:stop] = targeted_level_currents(
@@ -140,6 +142,26 @@ def run_sequential_experiment(
         if not np.array_equal(fused[: earlier.size], earlier):
             raise RuntimeError("a design round saw a record the final run does not reproduce")
     return applied, fused, run, intervals
+
+
+def designable_intervals(intervals_a, top_currents_a) -> np.ndarray:
+    """(2, 2) each valve's starting-current interval (A) clipped to [0, top], or [0, top].
+
+    Each valve gets its whole range where the fit gave no interval (``intervals_a`` None). A
+    joint search's ends are no interval: on seed 11 of the 80/45 mA plant
+    (``benchmarks/hammerstein.py``) the first round's fit of 14 settled levels put the outlet's
+    start at 226.5-230.8 mA, the design clipped that to 190-190 and held the outlet only near its
+    top, and the final fit missed the start (45 mA) by 97.5 mA.
+
+    Args:
+        intervals_a: per valve, (lowest, highest) starting current (A) the fit cannot tell
+            apart, or None.
+        top_currents_a: each valve's highest current (A).
+    """
+    tops = np.asarray(top_currents_a, dtype=float)
+    if intervals_a is None:
+        return np.column_stack([np.zeros_like(tops), tops])
+    return np.clip(np.asarray(intervals_a, dtype=float), 0.0, tops[:, None])
 
 
 def tops_seen_by_long_holds(

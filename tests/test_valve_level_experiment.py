@@ -6,6 +6,7 @@ import pytest
 from maskless.analysis.identification.section_start import MIN_SECTION_LEVELS
 from maskless.diagrams.scenario import load_scenario
 from maskless.diagrams.valve_level_experiment import (
+    designable_intervals,
     run_sequential_experiment,
     tops_seen_by_long_holds,
 )
@@ -96,6 +97,34 @@ def test_a_valve_held_with_the_other_open_gets_a_sections_levels_over_the_rounds
         in_section = applied[0, round_firsts + 59] == 0.15
         count = int(in_section.sum())
         assert count >= 1 and np.all(in_section[:count]) and not in_section[count:].any()
+
+
+def test_a_valve_with_no_interval_gets_its_whole_range_and_an_interval_is_clipped_to_it():
+    np.testing.assert_array_equal(
+        designable_intervals(None, TOPS), [[0.0, TOPS[0]], [0.0, TOPS[1]]]
+    )
+    # An interval across a range's end is clipped to it; one above the top (the joint search's
+    # ends on 80/45 mA seed 11, 226.5-230.8 mA) to the top, as every round did before.
+    found = designable_intervals(((-0.01, 0.05), (0.2265, 0.2308)), TOPS)
+    np.testing.assert_array_equal(found, [[0.0, 0.05], [TOPS[1], TOPS[1]]])
+
+
+def test_a_round_whose_fit_has_no_interval_targets_each_valves_whole_range():
+    config = load_scenario()
+    period_s = config.offset_free_lqg.sample_period_s
+    planned = random_level_currents(900, period_s, TOPS, (2.0, 6.0), 1)
+    answers = iter([(None, ((), ())), (INTERVALS, ((), ()))])
+
+    applied, _, _, intervals = run_sequential_experiment(
+        config, planned, period_s, TOPS, (300, 700), lambda u, y: next(answers), 4.0, 0, rounds=2
+    )
+    whole = ((0.0, TOPS[0]), (0.0, TOPS[1]))
+    np.testing.assert_array_equal(intervals, [whole, INTERVALS])
+    expected = targeted_level_currents(200, period_s, TOPS, whole, 4.0, 0, 0.0, (0.0, 0.0))
+    np.testing.assert_array_equal(applied[:, 300:500], expected)
+    # The whole range reaches levels the found intervals exclude.
+    inlet_low, inlet_high = INTERVALS[0]
+    assert np.any((applied[0, 300:500] > inlet_high) | (applied[0, 300:500] < inlet_low))
 
 
 @pytest.mark.parametrize(

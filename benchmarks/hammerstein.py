@@ -133,14 +133,7 @@ def pneumatic_record(config, args, seed):
         first = round((1.0 - args.targeted_share) * split)
 
         def start_intervals_a(u_a, y):
-            fit = estimate_hammerstein(
-                u_a,
-                y,
-                args.order,
-                period_s,
-                input_delay_samples=args.delay,
-                **fit_options(args),
-            )
+            fit = fitted_hammerstein(u_a, y, period_s, args, input_unit="A")
             # Without settled holds' profile intervals the spread is the joint search's ends,
             # which the design does not take for an interval (unless --search-spread-rounds).
             unread = not fit.start_intervals and not args.search_spread_rounds
@@ -318,8 +311,11 @@ def estimation_samples(samples: int, args) -> int:
     return round(args.estimation * samples)
 
 
-def fitted_hammerstein(u_est, y_est, period_s, args):
-    """The benchmark's Hammerstein fit of an estimation part (currents in mA, output in m)."""
+def fitted_hammerstein(u_est, y_est, period_s, args, input_unit="mA"):
+    """The benchmark's Hammerstein fit of a record (currents in ``input_unit``, output in m).
+
+    The design rounds fit their records so too, in A.
+    """
     return estimate_hammerstein(
         u_est,
         y_est,
@@ -327,7 +323,7 @@ def fitted_hammerstein(u_est, y_est, period_s, args):
         period_s,
         map_segments=args.segments,
         input_delay_samples=args.delay,
-        input_unit="mA",
+        input_unit=input_unit,
         output_unit="m",
         **fit_options(args),
     )

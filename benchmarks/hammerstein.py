@@ -134,11 +134,11 @@ def pneumatic_record(config, args, seed):
 
         def start_intervals_a(u_a, y):
             fit = fitted_hammerstein(u_a, y, period_s, args, input_unit="A")
-            # Without settled holds' profile intervals the spread is the joint search's ends,
-            # which the design does not take for an interval (unless --search-spread-rounds).
-            unread = not fit.start_intervals and not args.search_spread_rounds
-            spread = None if unread else fit.starting_current_spread()
-            return spread, fit.settled_currents or ((), ())
+            # Only settled holds' profile intervals are intervals; without them the spread is
+            # the joint search's ends, which only --search-spread-rounds takes for one.
+            if args.search_spread_rounds:
+                return fit.starting_current_spread(), fit.settled_currents or ((), ())
+            return fit.start_intervals or None, fit.settled_currents or ((), ())
 
         applied, height_m, run, intervals = run_sequential_experiment(
             config,

@@ -119,7 +119,7 @@ def run_sequential_experiment(
             settled = tops_seen_by_long_holds(
                 settled, applied.T, tuple(tops), hold_s, sample_period_s
             )
-        found = designable_intervals(spread, tuple(tops))
+        found = designable_intervals(spread, tops)
         intervals.append(found)
         seen.append(fused)
         currents[:, begin:stop] = targeted_level_currents(

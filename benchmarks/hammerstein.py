@@ -71,6 +71,7 @@ from maskless.analysis.identification.hammerstein import (
 from maskless.diagrams.process_pool import pool_results
 from maskless.diagrams.scenario import MAX_RANDOM_SEED, load_scenario
 from maskless.diagrams.valve_level_experiment import (
+    fit_reading,
     run_sequential_experiment,
     run_two_valve_experiment,
 )
@@ -134,11 +135,11 @@ def pneumatic_record(config, args, seed):
 
         def start_intervals_a(u_a, y):
             fit = fitted_hammerstein(u_a, y, period_s, args, input_unit="A")
-            # Only settled holds' profile intervals are intervals; without them the spread is
-            # the joint search's ends, which only --search-spread-rounds takes for one.
+            # Without settled holds' intervals the spread is the joint search's ends, which
+            # only --search-spread-rounds takes for one.
             if args.search_spread_rounds:
                 return fit.starting_current_spread(), fit.settled_currents or ((), ())
-            return fit.start_intervals or None, fit.settled_currents or ((), ())
+            return fit_reading(fit)
 
         applied, height_m, run, intervals = run_sequential_experiment(
             config,

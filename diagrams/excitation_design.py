@@ -40,9 +40,14 @@ from maskless.systems.limits import DURATION_S, SAMPLE_PERIOD_S
 from maskless.systems.plant.pneumatic_physics import ValveParameters
 from maskless.systems.units import a_to_ma
 
-SIGNALS = ("uniform", "prbs", "multisine", "multilevel", "valve-levels")
+SIGNALS = ("uniform", "prbs", "multisine", "multilevel", "valve-levels", "designed-levels")
 # The signals whose levels are held for --hold's random times.
-HELD_LEVEL_SIGNALS = ("multilevel", "valve-levels")
+HELD_LEVEL_SIGNALS = ("multilevel", "valve-levels", "designed-levels")
+# The signals that drive both valves through levels from shut to TOP_CURRENT_A.
+VALVE_LEVEL_SIGNALS = ("valve-levels", "designed-levels")
+# designed-levels' random holds unless asked otherwise: the design issue 14 measured
+# (``valve_level_experiment.SequentialDesign``) had its random levels held 5-60 s.
+DESIGNED_LEVELS_HOLD_S = (5.0, 60.0)
 
 # The half-width of an excitation whose request gives none (multilevel aside): `maskless excite`'s
 # long-standing 50 mA.
@@ -58,7 +63,9 @@ class ExcitationRequest(LabelledRequest):
             "multilevel" (random levels held for random times, to see the valves' static curve),
             or "valve-levels" (both valves, continuous stratified levels from shut to
             ``valve_level_design.TOP_CURRENT_A``, the design benchmarks/hammerstein.py measures
-            the Hammerstein fit on; split-range: one valve at a time).
+            the Hammerstein fit on; split-range: one valve at a time), or "designed-levels"
+            (those levels, split-range, with a stretch designed as the run goes from what the
+            record before it shows: ``valve_level_experiment.run_designed_experiment``).
         amplitude_a: half-width of the current excursion (A); None for 50 mA, or for a
             multilevel signal half the valve's whole range [0, saturation], so that its levels
             span it.
@@ -75,7 +82,9 @@ class ExcitationRequest(LabelledRequest):
             command: its range runs from one inlet span below the inlet's starting current, the
             outlet fully open, to the inlet's saturation, and its centre is the split point).
         levels: multilevel only: the number of levels.
-        hold_s: multilevel and valve-levels: (shortest, longest) time a level is held (s).
+        hold_s: multilevel, valve-levels and designed-levels: (shortest, longest) time a random
+            level is held (s); None for ``DESIGNED_LEVELS_HOLD_S`` with designed-levels, else
+            ``MULTILEVEL_HOLD_S``.
         labels: see ``LabelledRequest``.
     """
 
@@ -88,10 +97,13 @@ class ExcitationRequest(LabelledRequest):
     band_hz: tuple[float, float] | None = None
     valve_drive: str = "inlet"
     levels: int = MULTILEVEL_LEVELS
-    hold_s: tuple[float, float] = MULTILEVEL_HOLD_S
+    hold_s: tuple[float, float] | None = None
 
     def __post_init__(self):
         """Raises ConfigError for the first field out of range, named as the user named it."""
+        if self.hold_s is None:
+            default = DESIGNED_LEVELS_HOLD_S if self.signal == "designed-levels" else None
+            object.__setattr__(self, "hold_s", default or MULTILEVEL_HOLD_S)
 
         def require(condition, field_name, expected):
             if not condition:
@@ -150,11 +162,18 @@ class ExcitationRequest(LabelledRequest):
                 "valve_drive",
                 "split-range or independent with valve-levels (it drives both valves)",
             )
+        if self.signal == "designed-levels":
+            require(
+                self.valve_drive == "split-range",
+                "valve_drive",
+                "split-range with designed-levels (the design measured, one valve at a time)",
+            )
+        if self.signal in VALVE_LEVEL_SIGNALS:
             for field_name in ("amplitude_a", "offset_a"):
                 require(
                     getattr(self, field_name) is None,
                     field_name,
-                    "none with valve-levels (its levels span each valve from shut to "
+                    f"none with {self.signal} (its levels span each valve from shut to "
                     f"{a_to_ma(TOP_CURRENT_A):g} mA)",
                 )
         hold_pair = isinstance(self.hold_s, tuple | list) and len(self.hold_s) == 2
@@ -239,7 +258,7 @@ def plan_excitation(scenario: Scenario, request: ExcitationRequest) -> Excitatio
             f"{request.label('clock_periods')} {request.clock_periods}: expected 1 to "
             f"{samples // 2} (half the {samples} samples), so the PRBS has at least two bits"
         )
-    if request.signal == "valve-levels":
+    if request.signal in VALVE_LEVEL_SIGNALS:
         return _plan_valve_levels(scenario, request, period_s, samples)
     ranges_a = valve_current_ranges_a(scenario)
     seed = scenario.random_seed
@@ -318,7 +337,8 @@ def _plan_valve_levels(
     """Both valves' levels (``valve_level_design.random_level_currents``), applied as designed.
 
     The levels run from shut to ``TOP_CURRENT_A``, past saturation, where each valve is fully open
-    whatever its current: nothing is clipped.
+    whatever its current: nothing is clipped. A designed-levels run replaces a stretch of them as
+    it goes (``excitation_run``).
     """
     _check_holds(request, period_s)
     arrangement = "split_range" if request.valve_drive == "split-range" else "independent"

@@ -10,6 +10,7 @@ topics of a closed-loop run (the command topic carries both valve currents as ap
 designs the currents.
 """
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,6 +39,7 @@ from maskless.systems.control.excitation import (
     add_excitation_source,
     clip_to_valve_range,
     clipped_fraction,
+    sampled_signal,
     theoretical_uniform_std,
 )
 from maskless.systems.units import a_to_ma, m_to_mm
@@ -83,10 +85,39 @@ def excite(scenario: Scenario, request: ExcitationRequest) -> ExcitationRun:
 
 def _run_plan(plan: ExcitationPlan) -> ExcitationRun:
     """Simulates the planned experiment and summarises it."""
+    if plan.request.signal == "designed-levels":
+        return _run_designed_levels(plan)
     loop = build_excitation_loop(plan.scenario, plan.inlet, outlet=plan.outlet)
     run = simulate_loop(loop, plan.scenario)
     summary = excitation_summary(plan, run)
     return ExcitationRun(run, plan.designed, plan.inlet, summary, plan.outlet, plan.designed_outlet)
+
+
+def _run_designed_levels(plan: ExcitationPlan) -> ExcitationRun:
+    """The plan's levels with a stretch designed as the run goes; summarised as applied.
+
+    The summary adds ``design``: the stretch (s), its rounds' starting-current intervals (mA)
+    and the share of the record to fit (``valve_level_experiment.SequentialDesign``).
+    """
+    # Imported here: the designed experiment runs this module's loop.
+    from maskless.diagrams.valve_level_experiment import SequentialDesign, run_designed_experiment
+
+    design = SequentialDesign()
+    period_s = plan.inlet.sample_period_s
+    currents = np.vstack([plan.inlet.values, plan.outlet.values])
+    applied, _, run, intervals = run_designed_experiment(plan.scenario, currents, period_s, design)
+    inlet, outlet = (sampled_signal(row, period_s, plan.request.signal) for row in applied)
+    plan = dataclasses.replace(
+        plan, designed=inlet, inlet=inlet, outlet=outlet, designed_outlet=outlet
+    )
+    summary = excitation_summary(plan, run)
+    first, end = design.stretch(currents.shape[1])
+    summary["design"] = {
+        "stretch_s": [first * period_s, end * period_s],
+        "round_start_intervals_ma": [a_to_ma(found).tolist() for found in intervals],
+        "fit_share": design.fitted_share,
+    }
+    return ExcitationRun(run, inlet, inlet, summary, outlet, outlet)
 
 
 def excite_to_files(
@@ -248,7 +279,17 @@ def format_excitation_summary(summary: dict) -> str:
         f"t = {summary['estimation_start_s']:g} s) "
         f"{summary['fused_error_std_mm']:.3f} mm",
         f"  wall time {summary['wall_time_s']:.2f} s",
-        "Files:",
     ]
+    if "design" in summary:
+        first_s, end_s = summary["design"]["stretch_s"]
+        share = summary["design"]["fit_share"]
+        rounds = len(summary["design"]["round_start_intervals_ma"])
+        lines.append(
+            f"  designed {first_s:g}-{end_s:g} s in {rounds} "
+            f"rounds from the record before; fit the first {100 * share:g} % "
+            f"(maskless identify --method hammerstein --estimation 0:{share:g} --validation "
+            f"{share:g}:1)"
+        )
+    lines.append("Files:")
     lines += [f"  {name}: {path}" for name, path in summary["files"].items()]
     return "\n".join(lines)

@@ -2,7 +2,9 @@
 
 Reads the inlet's and the outlet's currents and the fused head height from a maskless MCAP
 recording (``maskless excite`` driving both valves), fits a Hammerstein model per order on the
-estimation part (``analysis.identification.hammerstein``) and judges it on the validation part
+estimation part (``analysis.identification.hammerstein``: a designed record's sections read,
+each hold's settling read from the hold, as ``valve_level_experiment.run_designed_experiment``'s
+rounds read it) and judges it on the validation part
 by simulation fit against the linear model of the same order, fitted by the same output-error
 code. Each model is simulated over the whole record from rest at its first currents and judged
 on the validation part (``hammerstein.held_out_simulation``: not from rest at the part's first
@@ -107,7 +109,16 @@ def identify_hammerstein_to_files(
     report = {"method": "hammerstein", "recording": str(recording), "models": []}
     figures = []
     for order in orders:
-        fit = estimate_hammerstein(u_est, y_est, order, ts, input_unit="A", output_unit="m")
+        fit = estimate_hammerstein(
+            u_est,
+            y_est,
+            order,
+            ts,
+            input_unit="A",
+            output_unit="m",
+            read_sections=True,
+            settle_by_holds=True,
+        )
         linear = estimate_hammerstein(u_est, y_est, order, ts, linear=True).model
         simulated, linear_simulated = (
             held_out_simulation(model, u, validation_part) for model in (fit.model, linear)

@@ -315,6 +315,53 @@ def test_valve_levels_records_the_benchmarks_level_design(drive, tmp_path, capsy
     assert summary["signal"] == "valve-levels"
 
 
+def test_designed_levels_replace_a_stretch_of_the_levels_with_the_designs_holds(tmp_path, capsys):
+    out = tmp_path / "ex"
+    args = ["excite", "--valve-drive", "split-range", "--signal", "designed-levels"]
+    args += ["--seed", "3", "--duration", "600", "--out", str(out), "--json"]
+    assert main(args) == 0
+    summary = json.loads(capsys.readouterr().out)
+    samples = summary["samples"]
+    currents = _recorded_currents(out, samples)
+    levels = random_level_currents(
+        samples, PERIOD_S, (TOP_CURRENT_A,) * 2, (5.0, 60.0), 3, "split_range"
+    ).T
+    # The stretch: the last 47.5 % of the fitted first 80 % (SequentialDesign's defaults).
+    end = round(0.8 * samples)
+    first = round(0.525 * end)
+    np.testing.assert_allclose(summary["design"]["stretch_s"], [first * PERIOD_S, end * PERIOD_S])
+    assert summary["design"]["fit_share"] == 0.8
+    assert len(summary["design"]["round_start_intervals_ma"]) == 2
+    # Outside it, the run's random levels as valve-levels records them; inside, the design's
+    # holds, the outlet's with the inlet fully open (190 mA), which no split-range level does.
+    np.testing.assert_array_equal(currents[:first], levels[:first])
+    np.testing.assert_array_equal(currents[end:], levels[end:samples])
+    inside = currents[first:end]
+    assert np.any((inside[:, 0] == TOP_CURRENT_A) & (inside[:, 1] > 0.0))
+    assert not np.any((currents[:first, 0] > 0.0) & (currents[:first, 1] > 0.0))
+    assert summary["signal"] == "designed-levels"
+
+
+@pytest.mark.parametrize(
+    "signal, fields, message",
+    [
+        (
+            "designed-levels",
+            {"valve_drive": "independent"},
+            "valve_drive 'independent': expected split-range with designed-levels",
+        ),
+        (
+            "designed-levels",
+            {"valve_drive": "split-range", "amplitude_a": 0.05},
+            "amplitude_a 0.05: expected none with designed-levels",
+        ),
+    ],
+)
+def test_designed_levels_refuse_what_the_design_does_not_take(signal, fields, message):
+    with pytest.raises(ConfigError, match=message):
+        ExcitationRequest(signal=signal, **fields)
+
+
 @pytest.mark.parametrize(
     "fields, message",
     [

@@ -8,7 +8,10 @@ and the fusion watch the head. --valve-drive independent gives each valve its ow
 to its own range; --valve-drive split-range splits one command between them, the inlet above the
 inlet's starting current and the outlet below it, as the controller does. --signal valve-levels
 drives both valves through continuous stratified levels from shut to 190 mA (one valve at a time
-with split-range), the design benchmarks/hammerstein.py measures the Hammerstein fit on. Writes
+with split-range), the design benchmarks/hammerstein.py measures the Hammerstein fit on;
+--signal designed-levels (split-range) designs a stretch of those levels as the run goes, from
+what the record before it shows (the sequential design whose fit places both valves' starting
+currents within 5 mA on most records; fit its first 80 %). Writes
 DIR/run.mcap
 with the topics `maskless simulate` writes (the command topic carries both valve currents; the
 reference topic holds the resting height, as nothing is commanded), DIR/run.png, and prints the
@@ -32,6 +35,7 @@ from maskless.diagrams.cli import (
     scenario_from_flags,
 )
 from maskless.diagrams.excitation_design import (
+    DESIGNED_LEVELS_HOLD_S,
     MULTILEVEL_HOLD_S,
     MULTILEVEL_LEVELS,
     SIGNALS,
@@ -133,11 +137,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--hold",
         type=_hold,
-        default=MULTILEVEL_HOLD_S,
+        default=None,
         metavar="SHORTEST:LONGEST",
-        help="multilevel and valve-levels: range of the random hold times, s (default "
-        f"{MULTILEVEL_HOLD_S[0]:g}:{MULTILEVEL_HOLD_S[1]:g}, chosen for the pneumatic plant's "
-        "time constants)",
+        help="multilevel, valve-levels and designed-levels: range of the random hold times, s "
+        f"(default {MULTILEVEL_HOLD_S[0]:g}:{MULTILEVEL_HOLD_S[1]:g}, chosen for the pneumatic "
+        f"plant's time constants; designed-levels {DESIGNED_LEVELS_HOLD_S[0]:g}:"
+        f"{DESIGNED_LEVELS_HOLD_S[1]:g}, as its design was measured)",
     )
     parser.add_argument("--seed", type=int, default=None, metavar="N", help="default: the config's")
     parser.add_argument(

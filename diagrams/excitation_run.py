@@ -11,6 +11,7 @@ designs the currents.
 """
 
 import dataclasses
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -103,6 +104,7 @@ def _run_designed_levels(plan: ExcitationPlan) -> ExcitationRun:
     from maskless.diagrams.valve_level_experiment import SequentialDesign, run_designed_experiment
 
     design = SequentialDesign()
+    started = time.perf_counter()
     period_s = plan.inlet.sample_period_s
     currents = np.vstack([plan.inlet.values, plan.outlet.values])
     applied, _, run, intervals = run_designed_experiment(plan.scenario, currents, period_s, design)
@@ -111,6 +113,8 @@ def _run_designed_levels(plan: ExcitationPlan) -> ExcitationRun:
         plan, designed=inlet, inlet=inlet, outlet=outlet, designed_outlet=outlet
     )
     summary = excitation_summary(plan, run)
+    # The whole experiment's, its rounds' runs and fits included, not the final run's alone.
+    summary["wall_time_s"] = time.perf_counter() - started
     first, end = design.stretch(currents.shape[1])
     summary["design"] = {
         "stretch_s": [first * period_s, end * period_s],

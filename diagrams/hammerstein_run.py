@@ -2,9 +2,9 @@
 
 Reads the inlet's and the outlet's currents and the fused head height from a maskless MCAP
 recording (``maskless excite`` driving both valves), fits a Hammerstein model per order on the
-estimation part (``analysis.identification.hammerstein``: a designed record's sections read,
-each hold's settling read from the hold, as ``valve_level_experiment.run_designed_experiment``'s
-rounds read it) and judges it on the validation part
+estimation part (``analysis.identification.hammerstein``, read as
+``DESIGNED_RECORD_READING`` says, as the sequential design's rounds read it) and judges it on the
+validation part
 by simulation fit against the linear model of the same order, fitted by the same output-error
 code. Each model is simulated over the whole record from rest at its first currents and judged
 on the validation part (``hammerstein.held_out_simulation``: not from rest at the part's first
@@ -21,6 +21,7 @@ import yaml
 
 from maskless.analysis.identification.fit_metrics import fit_percent
 from maskless.analysis.identification.hammerstein import (
+    DESIGNED_RECORD_READING,
     estimate_hammerstein,
     held_out_simulation,
 )
@@ -116,8 +117,7 @@ def identify_hammerstein_to_files(
             ts,
             input_unit="A",
             output_unit="m",
-            read_sections=True,
-            settle_by_holds=True,
+            **DESIGNED_RECORD_READING,
         )
         linear = estimate_hammerstein(u_est, y_est, order, ts, linear=True).model
         simulated, linear_simulated = (

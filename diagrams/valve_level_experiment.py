@@ -27,7 +27,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from maskless.analysis.identification.hammerstein import HammersteinFit, estimate_hammerstein
+from maskless.analysis.identification.hammerstein import (
+    DESIGNED_RECORD_READING,
+    HammersteinFit,
+    estimate_hammerstein,
+)
 from maskless.analysis.identification.section_start import MIN_SECTION_LEVELS
 from maskless.analysis.identification.settled_curve import hold_runs, others_shut
 from maskless.diagrams.excitation_run import build_excitation_loop
@@ -159,7 +163,7 @@ class SequentialDesign:
     --coverage-share 0.25 --other-valve-ma 0 190 --tops-from-long-holds --cover-under-sections
     --settle-by-holds --estimation 0.8`` (README, "--method hammerstein"): over 128 records of five
     plants, a camera noise each, its fit put the inlet's starting current within 5 mA on 118 and
-    the outlet's on 122, where the random levels alone (70 % fitted) did on 20 and 10 of 32.
+    the outlet's on 122; the random levels alone (70 % fitted) did on 20 and 10 of 32 at 60 mA.
 
     Attributes:
         fitted_share: the record's first share the fit is to read; the rest is held out.
@@ -201,9 +205,9 @@ def run_designed_experiment(
 ) -> tuple[np.ndarray, np.ndarray, SimulationRun, list[np.ndarray]]:
     """``run_sequential_experiment`` with ``design`` and the fit the Hammerstein command makes.
 
-    Each round reads the record so far by ``estimate_hammerstein`` (order 2, sections read,
-    each hold's settling read from the hold), as ``maskless identify --method hammerstein``
-    reads the final record; the valves' range is the datasheet's, 0 to ``TOP_CURRENT_A``. The
+    Each round reads the record so far by ``estimate_hammerstein`` (order 2,
+    ``DESIGNED_RECORD_READING``), as ``maskless identify --method hammerstein`` reads the final
+    record; the valves' range is the datasheet's, 0 to ``TOP_CURRENT_A``. The
     targeted levels are seeded by the scenario's seed. Arguments and returns as there.
     """
 
@@ -216,8 +220,7 @@ def run_designed_experiment(
                 sample_period_s,
                 input_unit="A",
                 output_unit="m",
-                read_sections=True,
-                settle_by_holds=True,
+                **DESIGNED_RECORD_READING,
             )
         )
 

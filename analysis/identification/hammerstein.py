@@ -68,6 +68,11 @@ _SETTLE_TIME_CONSTANTS = 4.0
 VALVE_NAMES = ("inlet", "outlet")
 # A reflection coefficient this close to +-1 sits where tanh is flat (``_search``).
 _SATURATED_REFLECTION = 1.0 - 1e-6
+# How a designed record is read (``estimate_hammerstein``'s flags): its sections, and where each
+# hold settled from the hold itself. The sequential design's rounds
+# (``diagrams.valve_level_experiment``) and ``maskless identify --method hammerstein`` both read
+# so, so the design sees what the final fit will.
+DESIGNED_RECORD_READING = {"read_sections": True, "settle_by_holds": True}
 
 
 @dataclass(frozen=True)

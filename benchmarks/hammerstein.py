@@ -71,6 +71,7 @@ from maskless.analysis.identification.hammerstein import (
 from maskless.diagrams.process_pool import pool_results
 from maskless.diagrams.scenario import MAX_RANDOM_SEED, load_scenario
 from maskless.diagrams.valve_level_experiment import (
+    SequentialDesign,
     fit_reading,
     run_sequential_experiment,
     run_two_valve_experiment,
@@ -130,8 +131,9 @@ def pneumatic_record(config, args, seed):
         applied, height_m, run = run_two_valve_experiment(config, currents, period_s)
         rounds = []
     else:
-        split = estimation_samples(samples, args)
-        first = round((1.0 - args.targeted_share) * split)
+        stretch = SequentialDesign(
+            fitted_share=args.estimation, targeted_share=args.targeted_share
+        ).stretch(samples)
 
         def start_intervals_a(u_a, y):
             fit = fitted_hammerstein(u_a, y, period_s, args, input_unit="A")
@@ -146,7 +148,7 @@ def pneumatic_record(config, args, seed):
             currents,
             period_s,
             tops,
-            (first, split),
+            stretch,
             start_intervals_a,
             args.targeted_hold_s,
             seed,

@@ -102,8 +102,9 @@ class ExcitationRequest(LabelledRequest):
     def __post_init__(self):
         """Raises ConfigError for the first field out of range, named as the user named it."""
         if self.hold_s is None:
-            default = DESIGNED_LEVELS_HOLD_S if self.signal == "designed-levels" else None
-            object.__setattr__(self, "hold_s", default or MULTILEVEL_HOLD_S)
+            designed = self.signal == "designed-levels"
+            default = DESIGNED_LEVELS_HOLD_S if designed else MULTILEVEL_HOLD_S
+            object.__setattr__(self, "hold_s", default)
 
         def require(condition, field_name, expected):
             if not condition:

@@ -42,6 +42,8 @@ from maskless.errors import RecordError
 # The Hammerstein model must beat the linear one by this many points of validation fit for the
 # verdict to call the valve maps worth their parameters.
 _MARGIN_POINTS = 5.0
+# How the verdict of maps worth their parameters (and a converged fit) begins.
+MAPS_EXPLAIN_VERDICT = "the valve maps explain"
 
 
 def read_two_valve_record(
@@ -127,7 +129,7 @@ def identify_hammerstein_to_files(
         linear_fit = fit_percent(y_val, linear_simulated)
         margin = validation_fit - linear_fit
         verdict = (
-            f"the valve maps explain {margin:.1f} points of validation simulation fit more than "
+            f"{MAPS_EXPLAIN_VERDICT} {margin:.1f} points of validation simulation fit more than "
             "a linear model of the same order"
             if margin >= _MARGIN_POINTS
             else f"the valve maps add {margin:.1f} points of validation simulation fit over a "
@@ -212,16 +214,19 @@ def format_hammerstein_report(report: dict) -> str:
             )
             play = valve.get("play_half_width")
             tolerance = valve.get("spread_cost_tolerance")
+            spread = f"{1e3 * low:.1f}-{1e3 * high:.1f} mA"
+            # A joint search's spread is where its searches ended, not what the record rules out.
             source = (
-                f"from {valve['starting_current_from']}, play ±{1e3 * play:.1f} mA; "
+                f"from {valve['starting_current_from']}, play ±{1e3 * play:.1f} mA; the record "
+                f"cannot tell apart {spread}"
                 if play is not None
-                else f"searches ending within {100 * tolerance:.2g} % of the best cost; "
+                else f"searches ending within {100 * tolerance:.2g} % of the best cost ended "
+                f"at {spread}"
                 if tolerance is not None
-                else ""
+                else f"the record cannot tell apart {spread}"
             )
             lines.append(
-                f"    {name}: starts at {1e3 * valve['starting_current']:.1f} mA "
-                f"({source}the record cannot tell apart {1e3 * low:.1f}-{1e3 * high:.1f} mA), "
+                f"    {name}: starts at {1e3 * valve['starting_current']:.1f} mA ({source}), "
                 f"{saturation}, full opening moves the head {1e3 * valve['dc_gain']:.2f} mm"
             )
         lines += [f"    WARNING: {warning}" for warning in model.get("warnings", [])]

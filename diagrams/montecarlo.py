@@ -153,10 +153,11 @@ class TrialRunner:
         return [
             row
             for run in range(self.config.seeds_per_patient)
-            for row in self._patient_rows(self.patient(trial, run))
+            for row in self.patient_rows(self.patient(trial, run))
         ]
 
-    def _patient_rows(self, patient: Patient) -> list[dict]:
+    def patient_rows(self, patient: Patient) -> list[dict]:
+        """``patient``'s rows, one per controller; a failed run's row names why."""
         drawn = dataclasses.asdict(patient)
         rows = []
         for controller in self.config.controllers:

@@ -64,6 +64,11 @@ from maskless.systems.hammerstein_model import HammersteinModel
 # A hold has settled this many time constants of the slowest pole after it began: e^-4, 2 % of
 # its step, left (the tail's mean then carries less than 1 %).
 _SETTLE_TIME_CONSTANTS = 4.0
+# The largest RMS scatter of the settled levels about the static curves, as a share of the
+# largest input's full-scale effect, before the fit names something else moving the output.
+LEVELS_SCATTER_SHARE = 0.02
+# Where a start came from when no settled holds gave it (``HammersteinFit.summary``).
+JOINT_SEARCH_SOURCE = "the joint search"
 # A two-valve record's inputs, in its columns' order.
 VALVE_NAMES = ("inlet", "outlet")
 # A reflection coefficient this close to +-1 sits where tanh is flat (``_search``).
@@ -103,6 +108,8 @@ class HammersteinFit:
             ``start_intervals``.
         settled_currents: per valve, the currents of the settled holds that showed its curve
             alone (the others shut), in the record's order; empty as ``start_intervals``.
+        levels_scatter: the settled levels' RMS residual about the static curves
+            (``StaticCurves.residual_rms``), in the output's unit; None without them.
         warnings: what makes the fit suspect, one sentence each.
         The fit percentages are over the whole estimation record, section holds included,
         where the dynamics were not fitted (no sum of the maps describes them).
@@ -121,6 +128,7 @@ class HammersteinFit:
     play_half_widths: tuple[float, ...] = ()
     starts_from_sections: tuple[bool, ...] = ()
     settled_currents: tuple[tuple[float, ...], ...] = ()
+    levels_scatter: float | None = None
     warnings: tuple[str, ...] = ()
 
     def starting_current_spread(self) -> list[tuple[float, float]]:
@@ -160,7 +168,7 @@ class HammersteinFit:
                     if from_section
                     else "the settled levels"
                     if self.start_intervals
-                    else "the joint search"
+                    else JOINT_SEARCH_SOURCE
                 ),
                 "play_half_width": self.play_half_widths[i] if self.play_half_widths else None,
                 "starting_current_spread": list(spread[i]),
@@ -180,6 +188,7 @@ class HammersteinFit:
             "output_unit": model.output_unit,
             "valves": valves,
             "poles": [[float(p.real), float(p.imag)] for p in model.poles()],
+            "levels_scatter": self.levels_scatter,
             "warnings": list(self.warnings),
         }
 
@@ -292,16 +301,26 @@ def estimate_hammerstein(
     if curves is None:
         # The searches' ends are the spread only where no settled holds gave intervals.
         return dataclasses.replace(
-            fit, search_tolerance=search_cost_tolerance(problem.residuals(solution.x))
+            fit,
+            search_tolerance=search_cost_tolerance(problem.residuals(solution.x)),
+            warnings=()
+            if linear
+            else _joint_search_warnings(
+                _settling_pole(u, y, order, map_segments, input_delay_samples, False),
+                sample_period_s,
+            ),
         )
+    settle = _settle_samples(slowest)
     return dataclasses.replace(
         fit,
         start_intervals=tuple(map(tuple, curves.start_intervals.tolist())),
         play_half_widths=curves.play_half_widths,
         starts_from_sections=curves.from_sections,
         settled_currents=tuple(tuple(c.tolist()) for c in curves.settled_currents),
+        levels_scatter=curves.residual_rms,
         warnings=_section_warnings(curves)
-        + _extrapolation_warnings(curves, u, _settle_samples(slowest), input_unit),
+        + _extrapolation_warnings(curves, u, settle, input_unit)
+        + _scatter_warnings(curves, output_unit),
     )
 
 
@@ -314,6 +333,46 @@ def _section_warnings(curves) -> tuple[str, ...]:
         "section) were fitted as a sum of the valves' curves, which does not describe them: too "
         "few other levels settled to read the section apart. The starting currents and curves "
         "may be far off; a longer record, or longer holds, gives the fit the levels it needs.",
+    )
+
+
+def _joint_search_warnings(slowest: float, sample_period_s: float) -> tuple[str, ...]:
+    """The maps came from the joint search: its starts are where searches ended, not measured.
+
+    On five of 40 still patients of the standard population (``benchmarks/identified_control.py
+    --scenario-presets``) the fit fell back to it and missed the plant's starting currents by
+    16-125 mA, three with a single current for a spread; on patient 11 the slowest pole
+    (0.9954) asks 65 s of a level, longer than every hold of the design. The advice is the
+    settling time and half as long again: a level needs it and an eighth more, with margin.
+    """
+    if not 0.0 < slowest < 1.0:
+        advice = "the record's slowest pole lies at or beyond 1, so no hold could settle"
+    else:
+        settle_s = _settle_samples(slowest) * sample_period_s
+        advice = (
+            f"the record's slowest pole ({slowest:.4f}) takes {settle_s:.0f} s to settle: hold "
+            f"levels at least {1.5 * settle_s:.0f} s"
+        )
+    return (
+        "too few holds settled to read the static curves from them, so the maps come from the "
+        "joint search of maps and dynamics: its starting and saturation currents are where "
+        "the searches ended, not measured, and the spread lists those ends, not an interval; "
+        f"{advice}.",
+    )
+
+
+def _scatter_warnings(curves, output_unit: str) -> tuple[str, ...]:
+    """Settled levels that scatter about the curves by more than ``LEVELS_SCATTER_SHARE``."""
+    full_scale = float(np.max(np.abs(curves.gains())))
+    if not curves.residual_rms > LEVELS_SCATTER_SHARE * full_scale:
+        return ()
+    return (
+        f"the settled levels scatter {curves.residual_rms:.3g} {output_unit} (RMS) about the "
+        f"static curves, {100 * curves.residual_rms / full_scale:.1f} % of the largest input's "
+        f"full-scale effect ({full_scale:.3g} {output_unit}): something the inputs do not drive "
+        "moved the output between holds (a patient's motion, a drift), or its noise did not "
+        "average out over them, and the curves and starting currents carry errors of that "
+        "size. Identify with the head still (a phantom) and the holds long.",
     )
 
 

@@ -333,6 +333,8 @@ def margins(figures: dict, baselines: dict, naive: dict, part_name: str) -> dict
 
 # How a verdict that the input explains the output begins (the workflow checks for it).
 EXPLAINS_VERDICT = "The input explains the output"
+# How a verdict that it explains part of it begins.
+EXPLAINS_PART_VERDICT = "The input explains part of the output"
 # How a verdict begins when a figure it needs is undefined (NaN): it is named, not judged.
 NO_VERDICT = "No verdict"
 
@@ -397,7 +399,7 @@ def verdict(
         return f"{EXPLAINS_VERDICT}: {evidence}."
     if gains["without_input"] < MARGIN_1STEP and gains["free_response"] < MARGIN_SIM:
         return f"The input explains essentially nothing of the output: {evidence}."
-    return f"The input explains part of the output: {evidence}."
+    return f"{EXPLAINS_PART_VERDICT}: {evidence}."
 
 
 def identify(

@@ -260,9 +260,9 @@ def _identify_hammerstein(excited: dict, order: int, out: Path, echo) -> dict:
     warnings = list(model["warnings"])
     if not model["verdict"].startswith(MAPS_EXPLAIN_VERDICT):
         warnings.append(
-            "the valve maps do not beat a linear model of the same order on the held-out part, "
-            "so the controller's inverse of them is not to be trusted; a longer record gives "
-            "the fit more settled levels"
+            "the valve maps do not explain the held-out part better than a linear model (the "
+            "verdict says how), so the controller's inverse of them is not to be trusted; a "
+            "longer record, with the head still, gives the fit more settled levels"
         )
     valves = {
         name: {

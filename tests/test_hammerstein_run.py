@@ -8,7 +8,12 @@ from maskless.analysis.identification.fit_metrics import fit_percent
 from maskless.analysis.identification.model_file import load_identified_model
 from maskless.analysis.identification.records import parse_range
 from maskless.diagrams.cli import main
-from maskless.diagrams.hammerstein_run import format_hammerstein_report, read_two_valve_record
+from maskless.diagrams.hammerstein_run import (
+    MAPS_EXPLAIN_VERDICT,
+    format_hammerstein_report,
+    hammerstein_verdict,
+    read_two_valve_record,
+)
 from maskless.systems.hammerstein_model import HammersteinModel
 
 
@@ -151,3 +156,20 @@ def test_the_report_says_where_a_start_came_from_and_the_play_it_found():
     lines = format_hammerstein_report(report).splitlines()
     assert lines[4] == "    WARNING: the section was fitted as a sum of curves"
     assert lines[5].startswith("    model file")
+
+
+@pytest.mark.parametrize(
+    "fits, begins",
+    [
+        # 900 s of designed levels on seed 0 (`maskless workflow --method hammerstein
+        # --excitation-duration 900`) fitted -79.8 % against the linear model's -135.8 %: once
+        # called "the valve maps explain 56.0 points more".
+        ((-79.8, -135.8), "the model does not explain the validation part: its simulation "),
+        ((49.9, 10.0), "the model does not explain the validation part"),
+        ((50.0, 44.0), f"{MAPS_EXPLAIN_VERDICT} 6.0 points"),
+        ((79.4, 37.9), f"{MAPS_EXPLAIN_VERDICT} 41.5 points"),
+        ((80.0, 77.0), "the valve maps add 3.0 points of validation simulation fit over"),
+    ],
+)
+def test_the_verdict_asks_the_maps_to_explain_the_output_and_to_beat_linear(fits, begins):
+    assert hammerstein_verdict(*fits).startswith(begins)

@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from maskless.analysis.identification.model_file import load_identified_model
+from maskless.diagrams import workflow as workflow_module
 from maskless.diagrams.cli import main
 from maskless.diagrams.commands import excite
 from maskless.diagrams.excitation_design import ExcitationRequest
-from maskless.diagrams.hammerstein_run import MAPS_EXPLAIN_VERDICT
+from maskless.diagrams.hammerstein_run import MAPS_EXPLAIN_VERDICT, hammerstein_verdict
 from maskless.diagrams.scenario import load_scenario, shipped_presets
 from maskless.diagrams.workflow import HAMMERSTEIN_EXCITATION, excite_command, run_workflow
 from maskless.systems.hammerstein_model import HammersteinModel
@@ -199,3 +200,40 @@ def test_the_hammerstein_workflow_refuses_a_single_valve_experiment(
     assert main(["workflow", "--method", "hammerstein", *flags, "--out", str(out)]) == 2
     assert message in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_the_hammerstein_stage_passes_on_the_fits_warnings_and_a_failed_verdict(
+    monkeypatch, tmp_path, hammerstein_workflow
+):
+    # The stage's own wiring, on a report as `identify --method hammerstein` writes one for a
+    # fit that failed (900 s of designed levels on seed 0: -79.8 % against -135.8 %).
+    valve = {
+        "starting_current": 0.1077,
+        "starting_current_spread": [0.1077, 0.1077],
+        "starting_current_from": "the joint search",
+        "saturation_current": 0.140,
+        "dc_gain": 0.0178,
+    }
+    searched = "too few holds settled to read the static curves from them"
+    model = {
+        "model_file": str(tmp_path / "model.yaml"),
+        "verdict": hammerstein_verdict(-79.8, -135.8),
+        "valves": {"inlet": valve, "outlet": {**valve, "dc_gain": -0.0084}},
+        "validation_simulation_fit_percent": -79.8,
+        "linear_validation_simulation_fit_percent": -135.8,
+        "poles": [[0.98, 0.0], [0.5, 0.0]],
+        "levels_scatter": None,
+        "warnings": [searched],
+    }
+    report = {"models": [model], "plot": None}
+    monkeypatch.setattr(workflow_module, "identify_hammerstein_to_files", lambda *a, **k: report)
+    excited = {"files": {"recording": "run.mcap"}, "sample_period_s": 1 / 15}
+    identified = workflow_module.identify_recording("hammerstein", excited, 2, tmp_path)
+    assert identified["warnings"][0] == searched
+    assert "do not explain the held-out part" in identified["warnings"][1]
+    # Shown in the text beside a real run's other stages.
+    text = workflow_module.format_workflow(
+        {**hammerstein_workflow[1], "identification": identified}
+    )
+    assert "inlet starts at 107.7 mA (its searches ended at 107.7-107.7 mA)" in text
+    assert f"WARNING: {searched}" in text and "does not explain the validation part" in text

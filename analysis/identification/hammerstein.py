@@ -246,10 +246,15 @@ def estimate_hammerstein(
     """
     u, y = _checked_record(u, y, order, map_segments, input_delay_samples, sample_period_s)
     options = _CurveOptions(read_sections, settle_by_holds, settle_from_maps, sections_from_within)
-    curves, slowest, counted = (
-        (None, None, None)
+    # The record's slowest pole: it sets how long a hold takes to settle, and the advice when
+    # too few did.
+    record_pole = (
+        None
         if linear
-        else _settled_curves(u, y, order, map_segments, input_delay_samples, options)
+        else _settling_pole(u, y, order, map_segments, input_delay_samples, settle_from_maps)
+    )
+    curves, slowest, counted = (
+        (None, None, None) if linear else _settled_curves(u, y, record_pole, options)
     )
     problem = HammersteinProblem(
         u, y, order, map_segments, input_delay_samples, linear, curves, slowest, counted
@@ -303,12 +308,7 @@ def estimate_hammerstein(
         return dataclasses.replace(
             fit,
             search_tolerance=search_cost_tolerance(problem.residuals(solution.x)),
-            warnings=()
-            if linear
-            else _joint_search_warnings(
-                _settling_pole(u, y, order, map_segments, input_delay_samples, False),
-                sample_period_s,
-            ),
+            warnings=() if linear else _joint_search_warnings(record_pole, sample_period_s),
         )
     settle = _settle_samples(slowest)
     return dataclasses.replace(
@@ -500,17 +500,17 @@ class _CurveOptions:
     sections_from_within: bool
 
 
-def _settled_curves(u, y, order, segments, delay, options: _CurveOptions):
+def _settled_curves(u, y, slowest: float, options: _CurveOptions):
     """(the settled holds' static curves (``settled_curve``), the slowest pole's radius, counted).
 
-    A hold has settled ``_SETTLE_TIME_CONSTANTS`` time constants of the slowest pole of the
-    record's ARX model (``_settling_pole``) after it began, or with ``settle_by_holds`` where
-    the hold itself shows it (``hold_settling``). ``counted`` (N,) are the samples the dynamics
-    are fitted on: all but the holds of the sections (``section_start``), each from the sample
-    before it (an approach) to one settling time after it, where no sum of the curves describes
-    the plant; None when all count. (None, None, None) if too few holds settled.
+    A hold has settled ``_SETTLE_TIME_CONSTANTS`` time constants of ``slowest`` (the slowest
+    pole of the record's ARX model, ``_settling_pole``) after it began, or with
+    ``settle_by_holds`` where the hold itself shows it (``hold_settling``). ``counted`` (N,)
+    are the samples the dynamics are fitted on: all but the holds of the sections
+    (``section_start``), each from the sample before it (an approach) to one settling time after
+    it, where no sum of the curves describes the plant; None when all count. (None, None,
+    None) if too few holds settled.
     """
-    slowest = _settling_pole(u, y, order, segments, delay, options.settle_from_maps)
     if not slowest < 1.0:
         return None, None, None
     settle = _settle_samples(slowest)

@@ -129,18 +129,25 @@ def offset_free_design(
             identified = identified.valve_linear_model(0)
         else:
             allocation = current_split_allocation(config.pneumatic.inlet, config.pneumatic.outlet)
-        design = design_controller(identified, identified_model_weights(config))
+        design = design_controller(identified, identified_model_weights(config, identified))
     except ModelError as error:
         raise ModelError(f"controller {shorthand(controller)!r}: {error}") from None
     return design, allocation
 
 
-def identified_model_weights(config: Scenario) -> OffsetFreeLqgWeights:
-    """The scenario's weights for a design on an identified model: no state process noise.
+def identified_model_weights(config: Scenario, model: LinearModel) -> OffsetFreeLqgWeights:
+    """The scenario's weights for a design on ``model``, an identified model.
 
-    The model's innovations form already carries the noise.
+    An innovations form (a model with K, as PEM and N4SID fit) carries its noise in the
+    innovation, so its states get ``identified_model_process_noise_m2`` (none). A model without a
+    noise model (K None: a Hammerstein model's linear part, an output-error fit) keeps the
+    pneumatic design's process noise, as the nominal plant's model does: with none, the filter
+    would trust its states entirely and learn every model error through the slow disturbance
+    estimate alone.
     """
     settings = config.offset_free_lqg
+    if model.K is None:
+        return settings.weights
     return dataclasses.replace(
         settings.weights, process_noise_m2=settings.identified_model_process_noise_m2
     )
@@ -157,8 +164,8 @@ def design_controller(
         model: a LinearModel whose output is the head height and whose input is the inlet
             command (say ``maskless.identify(...).model``); or a Scenario, designed as its
             closed loop designs it (``offset_free_design``).
-        weights: LQR and Kalman weights; None for the shipped scenario's, with no state process
-            noise (an identified model's innovations form carries it). Ignored for a Scenario.
+        weights: LQR and Kalman weights; None for the shipped scenario's for this model
+            (``identified_model_weights``). Ignored for a Scenario.
         measurement_delay_samples: controller ticks between the height and the estimate the
             controller reads; 1 for a model identified from a maskless recording (the sensing
             chain is already inside it). Ignored for a Scenario.
@@ -172,5 +179,5 @@ def design_controller(
     if weights is None:
         from maskless.diagrams.scenario import default_scenario
 
-        weights = identified_model_weights(default_scenario())
+        weights = identified_model_weights(default_scenario(), model)
     return design_offset_free_lqg(model, weights, measurement_delay_samples)

@@ -231,7 +231,8 @@ class OffsetFreeLqgConfig:
             the lowest lift the bladder holds with both valves shut (m).
         weights: LQR and Kalman weights.
         identified_model_process_noise_m2: ``weights.process_noise_m2`` for a design on an
-            identified model (m²), whose innovations form already carries its noise.
+            identified model with a noise model (m²), whose innovations form already carries its
+            noise; a model without one (a Hammerstein model's) keeps ``weights``'.
     """
 
     sample_period_s: float = UNSET

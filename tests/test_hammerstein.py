@@ -301,6 +301,39 @@ def test_a_valve_linear_model_has_unit_dc_gain_and_the_valves_poles():
 
 
 @pytest.mark.parametrize(
+    "poles, delay",
+    [
+        ([0.95, 0.8], 1),
+        ([0.95, 0.8], 3),
+        ([0.9 * np.exp(0.3j), 0.9 * np.exp(-0.3j), 0.7], 2),
+        ([0.9, 0.9], 1),
+    ],
+    ids=["real", "delayed", "complex-pair", "repeated"],
+)
+def test_a_valve_linear_model_is_the_valves_transfer_function_with_its_modes_as_states(
+    poles, delay
+):
+    a = np.real(np.poly(poles))[1:]
+    b = np.array([0.002, -0.001, 0.0005])[: a.size]
+    model = dataclasses.replace(PLANTED, a=[a, a], b=[b, b], input_delay_samples=delay)
+    linear = model.valve_linear_model(0)
+    # Against scipy's frequency response of q^-d B(q) / A(q), per unit DC gain.
+    omega = np.linspace(0.01, 3.0, 7)
+    numerator = np.concatenate([np.zeros(delay), b]) / model.dc_gains()[0]
+    _, expected = scipy.signal.freqz(numerator, np.concatenate([[1.0], a]), worN=omega)
+    np.testing.assert_allclose(linear.transfer_function(np.exp(1j * omega)), expected, rtol=1e-9)
+    # Past the d - 1 delayed inputs, each state is a mode: the dynamics are block diagonal, one
+    # block per real pole or complex pair (a repeated pole keeps the observer form).
+    modes = linear.A[delay - 1 :, delay - 1 :]
+    if len(set(poles)) == len(poles):
+        complex_pairs = sum(np.imag(pole) > 0 for pole in poles)
+        assert np.count_nonzero(modes - np.diag(np.diag(modes))) == 2 * complex_pairs
+    np.testing.assert_allclose(
+        np.sort_complex(np.linalg.eigvals(modes)), np.sort_complex(np.array(poles)), atol=1e-6
+    )
+
+
+@pytest.mark.parametrize(
     "change, message",
     [
         ({"a": [[0.1], [0.1]]}, r"b must have shape \(2, 1\)"),

@@ -224,10 +224,11 @@ def modal_realisation(a, b, input_delay_samples: int):
     Each state past the chain is one mode of the linear part (a real 2x2 block for a complex
     pair). The offset-free design weighs each state, and adds model error to it, in proportion
     to the output it holds in steady state, which is the share of the output that state carries
-    only when the states are modes: on seed 0's order-2 workflow model (a zero between its poles)
-    the observer form, each state feeding the next, tracked with p95 0.840 mm, the real Schur
-    form (a state holding almost nothing in steady state) 9.0 mm, the modes 0.171 mm. A repeated
-    pole has no modes of its own; there the observer form is kept.
+    only when the states are modes: on seed 0's order-2 workflow model (a zero between its poles),
+    designed with the same process noise, the observer form (each state feeding the next) tracked
+    with p95 0.840 mm, the real Schur form (a state holding almost nothing in steady state)
+    9.0 mm, the modes 0.171 mm. A repeated pole has no modes of its own; there the observer form
+    is kept.
 
     Args:
         a: A(q)'s coefficients a_1..a_n.

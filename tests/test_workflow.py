@@ -191,7 +191,8 @@ def test_the_loop_on_the_identified_maps_tracks_as_the_design_on_the_plants_phys
 ):
     # The reference is the design on the nominal plant's own linearisation and inverse, which the
     # identified model can at best match: same plant, seed and step. Designed on the order-2 fit
-    # with no process noise on its states, the loop's p95 was 2.5 times the reference's.
+    # with no process noise on its states, the loop's p95 was 0.451 mm against the reference's
+    # 0.162 mm.
     _, result, _ = hammerstein_workflow
     identified = result["closed_loop"]["tracking"]
     nominal_run = simulate_to_files(load_scenario(duration_s=60.0), tmp_path / "nominal")

@@ -7,9 +7,11 @@ by its own code with holds long enough to settle.
 
 import numpy as np
 import pytest
+import scipy.optimize
 
 from maskless.analysis.identification import section_start, settled_curve
 from maskless.analysis.identification.hammerstein import estimate_hammerstein
+from maskless.analysis.identification.profile_interval import CHI2_95
 from maskless.analysis.identification.settled_curve import (
     SettledLevels,
     fit_static_curves,
@@ -75,6 +77,41 @@ def test_planted_curves_are_recovered_from_their_levels():
         truth = _planted_curve(grid, *PLANTED_CURVES[i])
         assert np.max(np.abs(curves.curve(i, grid) - truth)) < 0.02 * np.max(np.abs(truth))
     assert curves.rest_output == pytest.approx(rest, abs=2e-3)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_start_profile_is_each_starts_best_fit_over_the_saturation(seed):
+    # One valve, no play, levels as fractions of its range, noise small against the curve: the
+    # sum of squares is sharp in the saturation. The reference at each start near the planted
+    # one is scipy's bounded search of the saturation. Taken from the coarse grid's saturations,
+    # the profile lay up to 14 chi2 thresholds above it (seed 1) and the interval shrank.
+    noise = 0.002
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(0.0, 1.0, 40)
+    y = 0.2 + _planted_curve(x, 0.3, 0.85, 0.05, 0.8) + noise * rng.standard_normal(x.size)
+    target = settled_curve._Target(y, np.ones(x.size))
+    starts, profile = settled_curve._start_interval(lambda w: x, [0.0], target, [], 0.95, 1.5)
+
+    ones = np.ones(x.size)  # the offset is free: the difference of two non-negative ones
+
+    def sum_of_squares(start, saturation):
+        columns = settled_curve.basis_grid(x, np.array([start]), np.array([saturation]))[0]
+        return min(
+            scipy.optimize.nnls(np.column_stack([ones, sign * columns, -ones]), y)[1] ** 2
+            for sign in (1.0, -1.0)
+        )
+
+    step = settled_curve._GRID_STEP
+    for start, value in zip(starts, profile, strict=True):
+        if abs(start - 0.3) > 0.1:
+            continue
+        best = scipy.optimize.minimize_scalar(
+            lambda c, start=start: sum_of_squares(start, c),
+            bounds=(start + step, 1.5),
+            method="bounded",
+            options={"xatol": 1e-7},
+        )
+        assert value < best.fun + 0.01 * CHI2_95 * noise**2, start
 
 
 def _levels_through_play(seed, half_width_a, count=120, noise=1e-3):

@@ -3,10 +3,9 @@
 For each of the first ``--trials`` patients of a population (default the standard preset: the
 paper's camera noise, the patient's own motion, the drawn head, bladder, valves and supply), the
 workflow's identification runs on that patient's plant as `maskless workflow --method M` runs it
-on the nominal one: an experiment (``workflow.DEFAULT_EXCITATION`` for pem,
-``HAMMERSTEIN_EXCITATION`` for hammerstein), then the model (order 2). Then the patient's judged
-step (the population's own, the same seed as `maskless montecarlo`) runs with the offset-free LQG
-designed on
+on the nominal one: the method's experiment (``workflow.METHOD_EXCITATIONS``), then the model
+(order 2). Then the patient's judged step (the population's own, the same seed as `maskless
+montecarlo`) runs with the offset-free LQG designed on
 
 - the nominal plant (what `maskless montecarlo` runs),
 - the patient's PEM model,
@@ -42,8 +41,7 @@ from maskless.diagrams.population import (
     sweep_scenario,
 )
 from maskless.diagrams.workflow import (
-    DEFAULT_EXCITATION,
-    HAMMERSTEIN_EXCITATION,
+    METHOD_EXCITATIONS,
     WORKFLOW_METHODS,
     identify_recording,
 )
@@ -52,7 +50,6 @@ from maskless.systems.units import a_to_ma
 sys.path.insert(0, str(Path(__file__).parent))
 from machine import machine_description  # noqa: E402
 
-EXCITATIONS = {"pem": DEFAULT_EXCITATION, "hammerstein": HAMMERSTEIN_EXCITATION}
 ORACLE = "oracle: the patient's plant"
 DESIGNS = ("nominal plant", "pem", "hammerstein", ORACLE)
 ORDER = 2
@@ -73,7 +70,7 @@ def patient_result(population_file: str, trial: int, folder: str, identify_only:
     identified, seconds = {}, {}
     for method in ("hammerstein",) if identify_only else WORKFLOW_METHODS:
         began = time.perf_counter()
-        excited = excite_to_files(scenario, EXCITATIONS[method], out / method / "excitation")
+        excited = excite_to_files(scenario, METHOD_EXCITATIONS[method], out / method / "excitation")
         identified[method] = identify_recording(
             method, excited, ORDER, out / method / "identification"
         )

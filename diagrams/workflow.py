@@ -58,6 +58,8 @@ HAMMERSTEIN_EXCITATION = ExcitationRequest(
     signal="designed-levels", valve_drive="split-range", duration_s=3600.0
 )
 WORKFLOW_METHODS = ("pem", "hammerstein")
+# Each method's experiment unless one is given.
+METHOD_EXCITATIONS = {"pem": DEFAULT_EXCITATION, "hammerstein": HAMMERSTEIN_EXCITATION}
 # The share of a random valve-levels record the Hammerstein fit takes (a designed record's
 # summary gives its own): the share README's valve-levels commands fit.
 RANDOM_LEVELS_FIT_SHARE = 0.7
@@ -122,9 +124,8 @@ def run_workflow(
         out: the directory for excitation/, identification/ and closed_loop/.
         method: one of ``WORKFLOW_METHODS``: a linear model by prediction error, or a Hammerstein
             model of both valves.
-        excitation: the experiment; None for the method's (``DEFAULT_EXCITATION``,
-            ``HAMMERSTEIN_EXCITATION``). A Hammerstein fit needs one of
-            ``VALVE_LEVEL_SIGNALS``.
+        excitation: the experiment; None for the method's (``METHOD_EXCITATIONS``). A
+            Hammerstein fit needs one of ``VALVE_LEVEL_SIGNALS``.
         order: the identified model's order (the paper's is 2).
         closed_loop_s: the closed-loop simulation's duration (s).
         seed: the seed of both simulations; None for the scenario's.
@@ -147,7 +148,7 @@ def run_workflow(
             f"{', '.join(WORKFLOW_METHODS)}"
         )
     if excitation is None:
-        excitation = HAMMERSTEIN_EXCITATION if method == "hammerstein" else DEFAULT_EXCITATION
+        excitation = METHOD_EXCITATIONS[method]
     if method == "hammerstein" and excitation.signal not in VALVE_LEVEL_SIGNALS:
         raise ConfigError(
             f"{excitation.label('signal')} {excitation.signal!r}: expected "

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from maskless.errors import ModelError
-from maskless.systems.linear_model import LinearModel, stable
+from maskless.systems.linear_model import LinearModel, observer_form, stable
 from maskless.systems.plant.valve_map import ValveMap
 
 
@@ -157,7 +157,7 @@ class HammersteinModel:
         C = np.zeros((1, self.inputs * size))
         for i in range(self.inputs):
             block = slice(i * size, (i + 1) * size)
-            A[block, block], B[block, [i]], C[:, block] = _observer_form(self.a[i], numerators[i])
+            A[block, block], B[block, [i]], C[:, block] = observer_form(self.a[i], numerators[i])
         return A, B, C
 
     def valve_linear_model(self, input_index: int) -> LinearModel:
@@ -240,7 +240,7 @@ def modal_realisation(a, b, input_delay_samples: int):
 
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     n, chain = a.size, input_delay_samples - 1
-    A_m, B_m, C_m = _observer_form(a, b)  # q^-1 B(q) / A(q)
+    A_m, B_m, C_m = observer_form(a, b)  # q^-1 B(q) / A(q)
     poles, vectors = np.linalg.eig(A_m)
     if np.linalg.cond(vectors) < 1e6:  # distinct poles; a repeated one loses digits here
         poles, vectors = scipy.linalg.cdf2rdf(poles, vectors)
@@ -256,16 +256,3 @@ def modal_realisation(a, b, input_delay_samples: int):
         B[:, :] = B_m
     C = np.hstack([np.zeros((1, chain)), C_m])
     return A, B, C
-
-
-def _observer_form(a, numerator):
-    """(A, B, C) of q^-1 N(q) / A(q) in observer form.
-
-    x1 is the output and each state feeds the one before it. N(q) = numerator[0] +
-    numerator[1] q^-1 + ..., at least as long as ``a``.
-    """
-    size = len(numerator)
-    A = np.zeros((size, size))
-    A[: len(a), 0] = -np.asarray(a)
-    A[: size - 1, 1:] = np.eye(size - 1)
-    return A, np.asarray(numerator, dtype=float)[:, None], np.eye(1, size)

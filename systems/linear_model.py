@@ -300,3 +300,17 @@ def stable(poles, tol: float = 0.0) -> bool:
     if not (0.0 <= tol < 1.0):
         raise ModelError(f"tol must lie in [0, 1), got {tol}")
     return bool(np.all(np.abs(poles) < 1.0 - tol))
+
+
+def observer_form(a, numerator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(A, B, C) of q^-1 N(q) / A(q) in the observer canonical form.
+
+    A(q) = 1 + a_1 q^-1 + ... + a_n q^-n and N(q) = numerator[0] + numerator[1] q^-1 + ...,
+    at least as long as ``a``; x1 is the output and each state feeds the one before it. It is
+    identification's working form (``innovations_model``) and a Hammerstein model's.
+    """
+    size = len(numerator)
+    A = np.zeros((size, size))
+    A[: len(a), 0] = -np.asarray(a)
+    A[: size - 1, 1:] = np.eye(size - 1)
+    return A, np.asarray(numerator, dtype=float).reshape(size, 1), np.eye(1, size)

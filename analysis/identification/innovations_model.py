@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from maskless.analysis.identification.linear_filter import filter_signal
-from maskless.systems.linear_model import LinearModel
+from maskless.systems.linear_model import LinearModel, observer_form
 
 # How far the response to a unit initial state may grow before an x(0) fit stops using later
 # samples: a millionfold keeps the columns of its least squares finite and well scaled, and is
@@ -146,18 +146,13 @@ class InnovationsModel:
         """
         if self.b.ndim == 2:
             return self.input_alone(input_index).linear_model(innovations_variance)
-        n = self.order
-        A = np.zeros((n, n))
-        A[:, 0] = -self.a
-        A[: n - 1, 1:] = np.eye(n - 1)
-        C = np.zeros((1, n))
-        C[0, 0] = 1.0
+        A, B, C = observer_form(self.a, self.b)
         return LinearModel(
             A=A,
-            B=self.b.reshape(n, 1),
+            B=B,
             C=C,
             D=np.zeros((1, 1)),
-            K=self.k.reshape(n, 1),
+            K=self.k.reshape(self.order, 1),
             sample_period_s=self.sample_period_s,
             innovations_variance=innovations_variance,
         )

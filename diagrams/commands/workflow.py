@@ -30,8 +30,7 @@ from maskless.diagrams.cli import (
 )
 from maskless.diagrams.excitation_run import SIGNALS, ExcitationRequest
 from maskless.diagrams.workflow import (
-    DEFAULT_EXCITATION,
-    HAMMERSTEIN_EXCITATION,
+    METHOD_EXCITATIONS,
     WORKFLOW_METHODS,
     format_workflow,
     run_workflow,
@@ -138,10 +137,6 @@ def excitation_request(args: argparse.Namespace) -> ExcitationRequest:
                     f"{flag}: not used by --method hammerstein (its levels span each valve "
                     "from shut to its top current)"
                 )
-        default = HAMMERSTEIN_EXCITATION
-    else:
-        default = DEFAULT_EXCITATION
-
     flags = {
         "signal": args.signal,
         "amplitude_a": None if args.amplitude is None else ma_to_a(args.amplitude),
@@ -150,4 +145,6 @@ def excitation_request(args: argparse.Namespace) -> ExcitationRequest:
         "clock_periods": args.clock_periods,
     }
     given = {field: value for field, value in flags.items() if value is not None}
-    return dataclasses.replace(default, **given, labels=given_labels(args, _EXCITATION_FLAGS))
+    return dataclasses.replace(
+        METHOD_EXCITATIONS[args.method], **given, labels=given_labels(args, _EXCITATION_FLAGS)
+    )

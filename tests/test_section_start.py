@@ -77,11 +77,38 @@ def test_a_section_that_never_reaches_past_the_start_leaves_it_unbounded_above()
     assert found.interval[1] == 0.95 and found.interval[0] <= holds[level_holds][below].max()
 
 
-def test_an_exact_hinge_gives_a_point_interval_not_an_error():
+def test_an_exact_hinge_gives_the_gap_between_the_levels_about_its_start_not_an_error():
     holds, level_holds, outputs = _hinge_record(1, noise=0.0)
     found = section_start(holds, level_holds, outputs, np.ones(outputs.size, dtype=bool), 0.95)
-    assert found.interval[0] <= found.start <= found.interval[1]
-    assert found.interval[1] - found.interval[0] <= 4 * 0.0025 + 1e-12  # grid steps round it
+    assert found.start == pytest.approx(START, abs=0.0025)  # the grid's step
+    # No level lies between the spools nearest the start on either side, so nothing but the
+    # hinge's straightness places it there: the interval covers that gap, and past it only the
+    # profile's own two grid steps either side of the best start.
+    spools = play_operator(holds, HALF_WIDTH)[level_holds]
+    gap = (spools[spools <= found.start].max(), spools[spools > found.start].min())
+    assert found.interval[0] <= gap[0] and found.interval[1] >= gap[1]
+    steps = 2 * 0.0025 + 1e-12
+    assert found.interval[0] >= min(gap[0], found.start - steps)
+    assert found.interval[1] <= max(gap[1], found.start + steps)
+
+
+def test_a_section_bent_above_its_start_with_no_level_near_it_owns_to_the_gap():
+    # A section's output bends above its start; with levels only well below and well above
+    # it, as patient 28 of the standard population had (stop 44 of issue 14), a straight hinge
+    # through the upper ones meets the flat far from the planted start, and its profile is
+    # narrow about that; the gap between the levels holds the start.
+    rng = np.random.default_rng(3)
+    targets = np.concatenate([rng.uniform(0.05, 0.25, 5), rng.uniform(0.5, 0.9, 5)])
+    approaches = np.where(np.arange(targets.size) % 2 == 0, 0.0, 1.0)
+    holds = np.column_stack([approaches, targets]).ravel()
+    level_holds = np.arange(1, holds.size, 2)
+    spools = play_operator(holds, HALF_WIDTH)[level_holds]
+    outputs = 3.0 - 4.0 * np.maximum(spools - START, 0.0) ** 2
+    outputs += 1e-3 * rng.standard_normal(outputs.size)
+    found = section_start(holds, level_holds, outputs, np.ones(outputs.size, dtype=bool), 0.95)
+    assert abs(found.start - START) > 0.05  # the straight hinge's reading
+    assert found.interval[0] <= START <= found.interval[1]
+    assert found.interval[1] >= spools[spools > START].min() - 1e-12
 
 
 def test_a_section_is_a_valve_at_many_currents_with_the_other_held_open_at_one():

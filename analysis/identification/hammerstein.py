@@ -99,8 +99,12 @@ class HammersteinFit:
             when no search finished or the maps came from settled holds.
         highest_currents: per valve, the highest current of the estimation record: a saturation
             past it was never seen, only allowed.
-        start_intervals: per valve, the starting current's 95 % profile interval from the
-            settled holds (``settled_curve``), when the maps came from them; else empty.
+        start_intervals: per valve, the starting currents the settled holds cannot tell apart
+            (``settled_curve``: the 95 % profile interval, widened to the gap between the
+            levels about the start), when the maps came from them; else empty.
+        profile_intervals: per valve, the 95 % profile interval alone; empty as
+            ``start_intervals``. The sequential design aims its holds at it
+            (``valve_level_experiment.fit_reading``).
         play_half_widths: per valve, its play band's half-width the settled holds show;
             empty as ``start_intervals``.
         starts_from_sections: per valve, whether a section of the record (``section_start``:
@@ -125,6 +129,7 @@ class HammersteinFit:
     search_tolerance: float = 0.0
     highest_currents: tuple[float, ...] = ()
     start_intervals: tuple[tuple[float, float], ...] = ()
+    profile_intervals: tuple[tuple[float, float], ...] = ()
     play_half_widths: tuple[float, ...] = ()
     starts_from_sections: tuple[bool, ...] = ()
     settled_currents: tuple[tuple[float, ...], ...] = ()
@@ -314,6 +319,7 @@ def estimate_hammerstein(
     return dataclasses.replace(
         fit,
         start_intervals=tuple(map(tuple, curves.start_intervals.tolist())),
+        profile_intervals=tuple(map(tuple, curves.profile_intervals.tolist())),
         play_half_widths=curves.play_half_widths,
         starts_from_sections=curves.from_sections,
         settled_currents=tuple(tuple(c.tolist()) for c in curves.settled_currents),

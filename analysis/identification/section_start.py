@@ -22,7 +22,12 @@ reads each valve's start from its section alone, here:
   play scatters a section's levels by 2 w times its slope, more than the noise on the outlet;
 - what the section cannot tell apart is reported as in ``settled_curve``: the starts whose
   profile (the lowest over w) is within chi2(1, 0.95) = 3.84 residual variances of the best
-  (``profile_interval``), open-ended where the section's levels never reach past the start. A
+  (``profile_interval``), open-ended where the section's levels never reach past the start, and
+  never narrower than the gap between its levels about the start (``covering_levels_gap``): a
+  section's output bends above the start, and a straight hinge through levels far above it
+  reads the start where their line meets the flat. On patient 28 of the standard population,
+  still (stop 44 of issue 14), the outlet's section had no level between 54.8 and 81.3 mA, and
+  its hinge put the start at 55.1 mA with an interval of 53.3-58.3 mA (the plant's: 60 mA). A
   section approached from one side only cannot tell a start from a play band's shift of it, and
   its interval is then as wide as the widest play: levels approached alternately from shut and
   from the top (``targeted_level_currents``) see both edges and separate the two;
@@ -40,7 +45,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from maskless.analysis.identification.profile_interval import CHI2_95, profile_interval
+from maskless.analysis.identification.profile_interval import (
+    CHI2_95,
+    covering_levels_gap,
+    profile_interval,
+)
 
 # Distinct currents of a valve that make a section: a hinge and a play width (4 parameters) with
 # as many residual degrees of freedom left (convention).
@@ -58,13 +67,16 @@ class SectionStart:
 
     Attributes:
         start: the best starting current.
-        interval: (lowest, highest) start within the profile's 95 % rise.
+        interval: (lowest, highest) start the section cannot tell apart: within the profile's
+            95 % rise, or in the gap between its levels about the start.
         play_half_width: the play band's half-width at the best fit.
+        profile_interval: (lowest, highest) start within the profile's 95 % rise alone.
     """
 
     start: float
     interval: tuple[float, float]
     play_half_width: float
+    profile_interval: tuple[float, float]
 
 
 def play_operator(currents: np.ndarray, half_width: float) -> np.ndarray:
@@ -175,6 +187,7 @@ def section_start(
         sse[row] = np.maximum(y @ y - explained, 0.0)
     # The lowest sum of squares (on exact ties the first: the narrowest play, the lowest start).
     row, column = np.unravel_index(np.argmin(sse), sse.shape)
+    best_spools = play_operator(hold_currents, PLAY_HALF_WIDTHS[row])[level_holds[mask]]
     profile = sse.min(axis=0)
     threshold = sse[row, column] * (1.0 + CHI2_95 / max(1, y.size - 4))
     low, high = profile_interval(starts, profile, threshold, starts[column], _START_STEP)
@@ -184,8 +197,10 @@ def section_start(
         low = 0.0
     if profile[-1] <= threshold:  # nor at its top: the hinge may lie above every level
         high = max_start
+    profiled = (low, min(high, max_start))
     return SectionStart(
         start=float(starts[column]),
-        interval=(low, min(high, max_start)),
+        interval=covering_levels_gap(profiled, best_spools, starts[column], 0.0, max_start),
         play_half_width=float(PLAY_HALF_WIDTHS[row]),
+        profile_interval=profiled,
     )

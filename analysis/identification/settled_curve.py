@@ -52,7 +52,10 @@ Choices, and why:
 - **What the levels cannot tell apart is reported**: each starting current's 95 % profile
   interval, the starts whose best fit (saturation, sign and play at their best) raises the sum
   of squares by at most chi2(1, 0.95) = 3.84 residual variances over the best (a
-  likelihood-ratio interval for Gaussian errors).
+  likelihood-ratio interval for Gaussian errors), widened to the gap between the settled levels
+  nearest below and above the best start (``profile_interval.covering_levels_gap``): inside it
+  only the quadratic's shape places the start, and the plant's lift (gentle for 15 mA, then
+  steep) is not a quadratic.
 """
 
 import functools
@@ -63,7 +66,11 @@ import scipy.optimize
 import scipy.stats
 
 from maskless.analysis.identification.grid_least_squares import lowest_sums_of_squares
-from maskless.analysis.identification.profile_interval import CHI2_95, profile_interval
+from maskless.analysis.identification.profile_interval import (
+    CHI2_95,
+    covering_levels_gap,
+    profile_interval,
+)
 from maskless.analysis.identification.section_start import (
     MIN_SECTION_LEVELS,
     PLAY_HALF_WIDTHS,
@@ -134,8 +141,9 @@ class StaticCurves:
 
     Currents in the units of the levels they were fitted to; ``increments`` (inputs, 2) are the
     Bernstein coefficients' non-negative steps times the input's sign, so each curve's full value
-    (its DC gain) is their sum; ``start_intervals`` (inputs, 2) the starting currents' 95 %
-    profile intervals; ``play_half_widths`` (inputs,) the half-width of each valve's play band
+    (its DC gain) is their sum; ``start_intervals`` (inputs, 2) the starting currents the levels
+    cannot tell apart (the 95 % profile interval, widened to the gap of levels about the start),
+    ``profile_intervals`` (inputs, 2) the profile intervals alone; ``play_half_widths`` (inputs,) the half-width of each valve's play band
     (its section's, where one found its start); ``from_sections`` (inputs,) whether a section
     found it (``section_start``); ``section_levels`` (M,) which of the settled levels were
     sections, left out of the curves' fit; ``settled_currents`` per input, the currents of the
@@ -155,6 +163,7 @@ class StaticCurves:
     from_sections: tuple[bool, ...]
     section_levels: np.ndarray
     settled_currents: tuple[np.ndarray, ...]
+    profile_intervals: np.ndarray
     unread_section_levels: int = 0
 
     def curve(self, index: int, currents) -> np.ndarray:
@@ -307,8 +316,8 @@ def fit_static_curves(
     columns = _columns(x, ends, signs)
     sse, coefficients = _nonnegative_fit(columns, target)
     variance = sse / max(1, y.size - parameter_count(inputs))
-    intervals = [
-        sections[i].interval
+    profiled = [
+        sections[i].profile_interval
         if i in sections
         else _within(
             _start_interval(
@@ -324,6 +333,12 @@ def fit_static_curves(
         )
         for i in range(inputs)
     ]
+    intervals = [
+        sections[i].interval
+        if i in sections
+        else covering_levels_gap(profiled[i], spool(i, plays[i]), ends[i][0], 0.0, max_start)
+        for i in range(inputs)
+    ]
     increments = np.array(
         [signs[i] * coefficients[1 + 2 * i : 3 + 2 * i] for i in range(inputs)], dtype=float
     )
@@ -337,6 +352,9 @@ def fit_static_curves(
         residual_rms=float(np.sqrt(sse / y.size)),
         start_intervals=np.array(
             [low[i] + span[i] * np.asarray(intervals[i]) for i in range(inputs)]
+        ),
+        profile_intervals=np.array(
+            [low[i] + span[i] * np.asarray(profiled[i]) for i in range(inputs)]
         ),
         play_half_widths=tuple(float(span[i] * plays[i]) for i in range(inputs)),
         from_sections=tuple(i in sections for i in range(inputs)),

@@ -11,9 +11,10 @@ a monotone curve flat below it, passes through the same levels. Where the family
 the valve's curve, the profile is narrow and wrong. On patient 34 of the standard population,
 still (``benchmarks/identified_control.py --scenario-presets``, stop 44 of issue 14), the
 inlet's levels stop at 62.3 mA (at rest) and resume at 112.1 mA (9.5 mm); the quadratic put the
-start at 82.7 mA with an interval of 78.4-85.5 mA, and at 78.9 mA (76.5-81.2) on the plant's
-noise-free lift at the same spools, where the plant's start is 60 mA: the family, not the
-noise, misplaced it. So a start's interval always covers that gap (``covering_levels_gap``).
+start at 82.7 mA with an interval of 78.4-85.5 mA, and at 78.3 mA (71.2-80.5) on the plant's
+noise-free lift at the levels' spool positions (``tests/test_settled_curve.py``), where the
+plant's start is 60 mA: the family, not the noise, misplaced it. So a start's interval always
+covers that gap (``covering_levels_gap``).
 """
 
 import numpy as np

@@ -176,8 +176,9 @@ def section_start(
     starts = np.arange(lowest, min(levels.max(), max_start) + 1e-12, _START_STEP)
     # (half-widths, starts) residual sum of squares of the best hinge.
     sse = np.empty((PLAY_HALF_WIDTHS.size, starts.size))
-    for row, half_width in enumerate(PLAY_HALF_WIDTHS):
-        spool = play_operator(hold_currents, half_width)[level_holds[mask]]
+    # Where the spool rests at each level, per half-width: the best one's also bounds the gap.
+    spools = [play_operator(hold_currents, w)[level_holds[mask]] for w in PLAY_HALF_WIDTHS]
+    for row, spool in enumerate(spools):
         hinge = np.maximum(spool[:, None] - starts[None, :], 0.0)
         hinge -= hinge.mean(axis=0)
         spread = np.sum(hinge**2, axis=0)
@@ -187,7 +188,6 @@ def section_start(
         sse[row] = np.maximum(y @ y - explained, 0.0)
     # The lowest sum of squares (on exact ties the first: the narrowest play, the lowest start).
     row, column = np.unravel_index(np.argmin(sse), sse.shape)
-    best_spools = play_operator(hold_currents, PLAY_HALF_WIDTHS[row])[level_holds[mask]]
     profile = sse.min(axis=0)
     threshold = sse[row, column] * (1.0 + CHI2_95 / max(1, y.size - 4))
     low, high = profile_interval(starts, profile, threshold, starts[column], _START_STEP)
@@ -200,7 +200,7 @@ def section_start(
     profiled = (low, min(high, max_start))
     return SectionStart(
         start=float(starts[column]),
-        interval=covering_levels_gap(profiled, best_spools, starts[column], 0.0, max_start),
+        interval=covering_levels_gap(profiled, spools[row], starts[column], 0.0, max_start),
         play_half_width=float(PLAY_HALF_WIDTHS[row]),
         profile_interval=profiled,
     )

@@ -145,9 +145,9 @@ class StaticCurves:
     cannot tell apart (the 95 % profile interval, widened to the gap of levels about the start),
     ``profile_intervals`` (inputs, 2) the profile intervals alone; ``play_half_widths``
     (inputs,) the half-width of each valve's play band (its section's, where one found its
-    start); ``from_sections`` (inputs,) whether a section
-    found it (``section_start``); ``section_levels`` (M,) which of the settled levels were
-    sections, left out of the curves' fit; ``settled_currents`` per input, the currents of the
+    start); ``from_sections`` (inputs,) whether a section found it (``section_start``);
+    ``section_levels`` (M,) which of the settled levels were sections, left out of the curves'
+    fit; ``settled_currents`` per input, the currents of the
     levels that showed its curve alone (it open, the others shut); ``residual_rms`` the root of
     the levels' weighted mean squared residual (each weighs the samples it averages);
     ``unread_section_levels`` the levels of sections found but left in the curves' fit (too few

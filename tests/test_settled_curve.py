@@ -12,7 +12,7 @@ import scipy.optimize
 
 from maskless.analysis.identification import section_start, settled_curve
 from maskless.analysis.identification.hammerstein import estimate_hammerstein
-from maskless.analysis.identification.profile_interval import CHI2_95
+from maskless.analysis.identification.profile_interval import CHI2_95, covering_levels_gap
 from maskless.analysis.identification.settled_curve import (
     SettledLevels,
     fit_static_curves,
@@ -114,6 +114,18 @@ def test_a_start_in_a_gap_of_levels_owns_to_the_gap_where_the_quadratic_misreads
     low, high = curves.start_intervals[0]
     assert (low, high) == pytest.approx((0.0597, 0.1095), abs=1e-9)
     assert low <= plant_start <= high
+
+
+def test_a_starts_interval_covers_its_gap_of_levels_within_the_starts_allowed():
+    profiled = (0.30, 0.34)
+    # Levels at 0.1 and 0.6 about a start of 0.32: the gap, 0.1-0.6.
+    assert covering_levels_gap(profiled, [0.1, 0.6, 0.8], 0.32, 0.0, 0.95) == (0.1, 0.6)
+    # A level past the starts allowed (a spool below 0 under the play, one above 0.95) widens
+    # the interval to them, not beyond; none below or above: to them as well.
+    assert covering_levels_gap(profiled, [-0.02, 0.99], 0.32, 0.0, 0.95) == (0.0, 0.95)
+    assert covering_levels_gap(profiled, [], 0.32, 0.0, 0.95) == (0.0, 0.95)
+    # Levels inside the profile leave it as it is.
+    assert covering_levels_gap(profiled, [0.31, 0.33], 0.32, 0.0, 0.95) == profiled
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])

@@ -45,7 +45,8 @@ def profile_interval(grid, profile, threshold, best, step, lowest=0.0) -> tuple[
 def covering_levels_gap(interval, positions, start, lowest, highest) -> tuple[float, float]:
     """``interval`` widened to cover the gap of settled levels about ``start`` (module docstring).
 
-    The gap runs from the nearest level at or below ``start`` to the nearest above it.
+    The gap runs from the nearest level at or below ``start`` to the nearest above it, within
+    the starts allowed: a level past them widens the interval to them, not beyond.
 
     Args:
         interval: (lowest, highest) the profile's interval.
@@ -56,6 +57,6 @@ def covering_levels_gap(interval, positions, start, lowest, highest) -> tuple[fl
     """
     positions = np.asarray(positions, dtype=float)
     below, above = positions[positions <= start], positions[positions > start]
-    gap_low = float(below.max()) if below.size else lowest
-    gap_high = float(above.min()) if above.size else highest
+    gap_low = max(float(below.max()), lowest) if below.size else lowest
+    gap_high = min(float(above.min()), highest) if above.size else highest
     return min(interval[0], gap_low), max(interval[1], gap_high)

@@ -84,7 +84,8 @@ class ExcitationRequest(LabelledRequest):
         levels: multilevel only: the number of levels.
         hold_s: multilevel, valve-levels and designed-levels: (shortest, longest) time a random
             level is held (s); None for ``DESIGNED_LEVELS_HOLD_S`` with designed-levels, else
-            ``MULTILEVEL_HOLD_S``.
+            ``MULTILEVEL_HOLD_S``. Designed-levels' targeted holds last the shortest, or the
+            design's own hold if longer (``excitation_run.sequential_design``).
         labels: see ``LabelledRequest``.
     """
 

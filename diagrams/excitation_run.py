@@ -94,6 +94,18 @@ def _run_plan(plan: ExcitationPlan) -> ExcitationRun:
     return ExcitationRun(run, plan.designed, plan.inlet, summary, plan.outlet, plan.designed_outlet)
 
 
+def sequential_design(request: ExcitationRequest):
+    """The sequential design (``valve_level_experiment.SequentialDesign``) ``request`` asks for.
+
+    Its targeted holds last the request's shortest hold, or the design's own if longer: a fit
+    whose holds were too short for the plant advises holds of at least so long
+    (``hammerstein._joint_search_warnings``), and a user who asks for them gets them everywhere.
+    """
+    from maskless.diagrams.valve_level_experiment import SequentialDesign
+
+    return SequentialDesign(hold_s=max(SequentialDesign.hold_s, request.hold_s[0]))
+
+
 def _run_designed_levels(plan: ExcitationPlan) -> ExcitationRun:
     """The plan's levels with a stretch designed as the run goes; summarised as applied.
 
@@ -101,9 +113,9 @@ def _run_designed_levels(plan: ExcitationPlan) -> ExcitationRun:
     and the share of the record to fit (``valve_level_experiment.SequentialDesign``).
     """
     # Imported here: the designed experiment runs this module's loop.
-    from maskless.diagrams.valve_level_experiment import SequentialDesign, run_designed_experiment
+    from maskless.diagrams.valve_level_experiment import run_designed_experiment
 
-    design = SequentialDesign()
+    design = sequential_design(plan.request)
     started = time.perf_counter()
     period_s = plan.inlet.sample_period_s
     currents = np.vstack([plan.inlet.values, plan.outlet.values])

@@ -14,9 +14,11 @@ from maskless.diagrams.excitation_run import (
     ExcitationRequest,
     build_excitation_loop,
     format_excitation_summary,
+    sequential_design,
 )
 from maskless.diagrams.scenario import load_scenario
 from maskless.diagrams.simulation import simulate_loop
+from maskless.diagrams.valve_level_experiment import SequentialDesign
 from maskless.errors import ConfigError
 from maskless.recording import read_camera_frames, read_recording
 from maskless.systems.control.excitation import (
@@ -68,6 +70,18 @@ def test_open_loop_head_settles_at_the_plants_equilibrium_for_each_current():
         start_m = run.closed_loop.start_height_m
         # Within 2 % of the way from the start to the steady height (exp(-5) < 1 %).
         assert final_m == pytest.approx(steady_m, abs=0.02 * abs(steady_m - start_m))
+
+
+def test_designed_levels_targeted_holds_last_the_shortest_hold_asked_for():
+    # The Hammerstein fit's advice on a slow plant is "hold levels at least N s": a user who
+    # asks for it with --hold gets it in the targeted stretch too, not only in the random levels.
+    def design(hold_s=None):
+        request = ExcitationRequest("designed-levels", valve_drive="split-range", hold_s=hold_s)
+        return sequential_design(request)
+
+    assert design() == SequentialDesign()
+    assert design((5.0, 30.0)).hold_s == SequentialDesign.hold_s
+    assert design((87.0, 130.0)) == dataclasses.replace(SequentialDesign(), hold_s=87.0)
 
 
 def test_request_refuses_an_unknown_signal_naming_the_flag_it_came_from():

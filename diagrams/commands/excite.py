@@ -142,7 +142,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="multilevel, valve-levels and designed-levels: range of the random hold times, s "
         f"(default {MULTILEVEL_HOLD_S[0]:g}:{MULTILEVEL_HOLD_S[1]:g}, chosen for the pneumatic "
         f"plant's time constants; designed-levels {DESIGNED_LEVELS_HOLD_S[0]:g}:"
-        f"{DESIGNED_LEVELS_HOLD_S[1]:g}, as its design was measured)",
+        f"{DESIGNED_LEVELS_HOLD_S[1]:g}, as its design was measured, and its targeted holds "
+        "last the shortest, or the design's own hold if longer)",
     )
     parser.add_argument("--seed", type=int, default=None, metavar="N", help="default: the config's")
     parser.add_argument(

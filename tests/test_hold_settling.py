@@ -8,8 +8,14 @@ settles. Noise is white and its window average's deviation sigma / sqrt(window).
 import numpy as np
 import pytest
 
+from maskless.analysis.identification.hammerstein import (
+    _capped_by_holds,
+    _settle_samples,
+)
 from maskless.analysis.identification.hold_settling import (
+    TIMING_WINDOW_S,
     settled_levels_by_holds,
+    settling_from_holds,
     window_averages,
     window_noise,
 )
@@ -116,3 +122,41 @@ def test_a_record_of_one_hold_or_too_short_holds_gives_no_levels():
     found = settled_levels_by_holds(levels[:, None], y, 64, 20)
     assert found.outputs.size == 0
     assert found.currents.shape == (0, 1)
+
+
+def _stepped_record(hold_samples, pole, noise=0.01, seed=0):
+    """(u (N, 1), y (N,)): a lag with pole ``pole`` through holds at 0, 5, 1, 4, 0, seeded noise."""
+    levels = np.repeat([0.0, 5.0, 1.0, 4.0, 0.0], [200] + [hold_samples] * 4)
+    rng = np.random.default_rng(seed)
+    y = _first_order(levels, np.full(levels.size, pole)) + noise * rng.standard_normal(levels.size)
+    return levels[:, None], y
+
+
+@pytest.mark.parametrize("hold_samples", [450, 600, 1200])
+def test_a_records_settling_time_is_timed_from_its_large_steps_approaches(hold_samples):
+    u, y = _stepped_record(hold_samples, 0.99)
+    # Within 2 % of each step from k = log(0.02) / log(0.99) = 389.3 samples on: its tail fitted
+    # as the exponential it is, to within a window (10 samples), whether the hold ends soon
+    # after (450: its last quarter's mean is then 2 % short of the level) or long after.
+    k = np.log(0.02) / np.log(0.99)
+    assert settling_from_holds(u, y, 10) == pytest.approx(k, abs=10)
+
+
+def test_no_settling_time_where_the_holds_end_before_their_steps_settle_or_in_the_noise():
+    # Pole 0.995: 2 % only after 781 samples, and every hold lasts 300.
+    u, y = _stepped_record(300, 0.995)
+    assert settling_from_holds(u, y, 10) is None
+    # Steps of 5 whose 5 % (0.25) lies within five deviations of the noise's 10-sample average.
+    u, y = _stepped_record(600, 0.99, noise=0.5)
+    assert settling_from_holds(u, y, 10) is None
+
+
+def test_the_hammerstein_settling_time_is_the_poles_unless_the_large_steps_settled_sooner():
+    u, y = _stepped_record(600, 0.99)
+    timed = settling_from_holds(u, y, 10)
+    # Samples of 0.5 s: TIMING_WINDOW_S (5 s) is the 10 samples timed above. A pole settling
+    # slower than the steps did (0.999: 4 time constants are 3,998 samples) gives way to them; a
+    # faster one stands.
+    assert TIMING_WINDOW_S / 0.5 == 10
+    assert _settle_samples(_capped_by_holds(0.999, u, y, 0.5)) == timed
+    assert _capped_by_holds(0.95, u, y, 0.5) == 0.95

@@ -305,8 +305,11 @@ def _record_with_an_inlet_top_held(planted, u, seconds):
 @pytest.mark.parametrize(
     "seconds, warned",
     [
-        (16.0, True),  # held past half a settling time (about 25 s here), not settled
+        # The planted poles settle in 8-9 s, as the record's large steps show (its ARX pole
+        # reads 21-22 s: a linear model of curved maps makes up with a slower pole).
+        (6.0, True),  # held past half a settling time, not settled
         (0.3, False),  # an approach's few samples: the record never held it there
+        (16.0, False),  # settled, though not by the ARX pole's settling time
         (60.0, False),  # settled: the curve is measured up to the top
     ],
 )

@@ -136,11 +136,14 @@ def _settled_from(y, average, first, end, window, noise, tail_least, settle_samp
 # cameras' noise) on: its output there is fitted as an exponential tail, final value included,
 # and its settling time is where that tail is within _STEP_FRACTION of the step.
 _TAIL_SHARE = 0.10
+# A step is timed only where this share of it stands _NOISE_DEVIATIONS window-noise deviations
+# clear: the tail from 10 % down to there is then the plant's, not the noise's.
+_CLEAR_SHARE = 0.05
 # A tail is read only where the hold runs this many of its time constants past its start: with
 # fewer the final value is barely determined.
 _TAIL_TIME_CONSTANTS = 2.0
-# The time constants tried, as shares of the tail's length (a grid: for each, the final value
-# and the tail's size are one linear least squares).
+# The time constants tried, as shares of the tail's length: for each, the final value and the
+# tail's size are one linear least squares, so a grid finds the best with no starting guess.
 _TAIL_GRID = np.geomspace(0.02, 2.0, 120)
 # The averaging window of a timed approach (s): long against the cameras' noise, whose fused
 # height still wanders 0.23 mm (RMS) over 1.8 s averages and 0.10 mm over 10 s.
@@ -152,11 +155,11 @@ MIN_TIMED_HOLDS = 3
 def settling_from_holds(u, y, window: int) -> int | None:
     """The longest time (samples) any large step of the record took to settle, or None.
 
-    A hold whose step's 5 % lies ``_NOISE_DEVIATIONS`` window-noise deviations clear of the
-    mean of its last quarter is timed. From the last window average outside ``_TAIL_SHARE`` of
-    the step (less half a window, the average's lag) to its end, its output is fitted as
-    final value + size * exp(-k / tau), and it settled where that is within 2 % of the step
-    (``_STEP_FRACTION``). A hold whose tail ran fewer than ``_TAIL_TIME_CONSTANTS`` time
+    A hold whose step's ``_CLEAR_SHARE`` lies ``_NOISE_DEVIATIONS`` window-noise deviations
+    clear of the mean of its last quarter is timed. From the last window average outside
+    ``_TAIL_SHARE`` of the step (less half a window, the average's lag) to its end, its output is
+    fitted as final value + size * exp(-k / tau), and it settled where that is within 2 % of
+    the step (``_STEP_FRACTION``). A hold whose tail ran fewer than ``_TAIL_TIME_CONSTANTS`` time
     constants, or settled only past its end, was cut short: it only says the plant takes
     longer than the hold. So a record with such a hold longer than every timed one, or with
     fewer than ``MIN_TIMED_HOLDS`` timed, gives None.
@@ -176,7 +179,7 @@ def settling_from_holds(u, y, window: int) -> int | None:
             continue
         before = y[first - window : first].mean()
         step = abs(y[end - max(window, int((end - first) * _FINAL_SHARE)) : end].mean() - before)
-        if 0.05 * step < _NOISE_DEVIATIONS * noise:
+        if _CLEAR_SHARE * step < _NOISE_DEVIATIONS * noise:
             continue
         settled = _tail_settling(y[first:end], average[first + window - 1 : end], before, window)
         if settled is None:

@@ -112,7 +112,7 @@ def _settled_from(y, average, first, end, window, noise, tail_least, settle_samp
     """The sample the hold ``first``-``end`` settled at, or None if it did not (see above)."""
     if end - first < tail_least + window:
         return None
-    final = y[end - max(tail_least, int((end - first) * _FINAL_SHARE)) : end].mean()
+    final = _final_value(y, first, end, tail_least)
     # The step from the window before the hold; the record's first hold, with none before,
     # from its own first window.
     before = y[first - window : first] if first >= window else y[first : first + window]
@@ -178,10 +178,12 @@ def settling_from_holds(u, y, window: int) -> int | None:
         if end - first < 4 * window or first < window:
             continue
         before = y[first - window : first].mean()
-        step = abs(y[end - max(window, int((end - first) * _FINAL_SHARE)) : end].mean() - before)
-        if _CLEAR_SHARE * step < _NOISE_DEVIATIONS * noise:
+        final = _final_value(y, first, end, window)
+        if _CLEAR_SHARE * abs(final - before) < _NOISE_DEVIATIONS * noise:
             continue
-        settled = _tail_settling(y[first:end], average[first + window - 1 : end], before, window)
+        settled = _tail_settling(
+            y[first:end], average[first + window - 1 : end], before, final, window
+        )
         if settled is None:
             cut_short.append(end - first)
         else:
@@ -191,13 +193,13 @@ def settling_from_holds(u, y, window: int) -> int | None:
     return int(np.ceil(max(timed)))
 
 
-def _tail_settling(held, averages, before: float, window: int) -> float | None:
+def _tail_settling(held, averages, before: float, final: float, window: int) -> float | None:
     """Samples from a hold's start until its fitted tail is within 2 % of its step, or None.
 
     ``held``: the hold's output; ``averages``: its window averages from the first that reads
-    only its own samples; ``before``: the output's mean over the window before it.
+    only its own samples; ``before``: the output's mean over the window before it; ``final``:
+    its final value (``_final_value``), which places the tail's start.
     """
-    final = held[-max(window, int(held.size * _FINAL_SHARE)) :].mean()
     outside = np.flatnonzero(np.abs(averages - final) > _TAIL_SHARE * abs(final - before))
     start = int(round(outside[-1] + window - window / 2)) if outside.size else 0
     tail = held[start:]
@@ -221,3 +223,8 @@ def _tail_settling(held, averages, before: float, window: int) -> float | None:
         return None
     settled = start + tau * max(np.log(abs(size) / (_STEP_FRACTION * step)), 0.0)
     return settled if settled <= held.size else None
+
+
+def _final_value(y, first: int, end: int, least: int) -> float:
+    """A hold's final value: the mean of its last ``_FINAL_SHARE`` (at least ``least`` samples)."""
+    return float(y[end - max(least, int((end - first) * _FINAL_SHARE)) : end].mean())

@@ -116,16 +116,22 @@ def test_a_start_in_a_gap_of_levels_owns_to_the_gap_where_the_quadratic_misreads
     assert low <= plant_start <= high
 
 
-def test_a_starts_interval_covers_its_gap_of_levels_within_the_starts_allowed():
+def test_a_starts_interval_covers_the_gaps_of_levels_about_the_starts_it_holds():
     profiled = (0.30, 0.34)
-    # Levels at 0.1 and 0.6 about a start of 0.32: the gap, 0.1-0.6.
+    # Levels at 0.1 and 0.6 about every start of the profile: the gap, 0.1-0.6.
     assert covering_levels_gap(profiled, [0.1, 0.6, 0.8], 0.32, 0.0, 0.95) == (0.1, 0.6)
+    # A level at 0.33 inside the profile: its highest start, 0.34, lies in the gap 0.33-0.6,
+    # its best, 0.32, in 0.1-0.33; the interval covers both.
+    assert covering_levels_gap(profiled, [0.1, 0.33, 0.6], 0.32, 0.0, 0.95) == (0.1, 0.6)
+    # Levels just outside the profile bound it there.
+    assert covering_levels_gap(profiled, [0.1, 0.29, 0.31, 0.36, 0.6], 0.32, 0.0, 0.95) == (
+        0.29,
+        0.36,
+    )
     # A level past the starts allowed (a spool below 0 under the play, one above 0.95) widens
     # the interval to them, not beyond; none below or above: to them as well.
     assert covering_levels_gap(profiled, [-0.02, 0.99], 0.32, 0.0, 0.95) == (0.0, 0.95)
     assert covering_levels_gap(profiled, [], 0.32, 0.0, 0.95) == (0.0, 0.95)
-    # Levels inside the profile leave it as it is.
-    assert covering_levels_gap(profiled, [0.31, 0.33], 0.32, 0.0, 0.95) == profiled
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])

@@ -23,14 +23,15 @@ reads each valve's start from its section alone, here:
 - what the section cannot tell apart is reported as in ``settled_curve``: the starts whose
   profile (the lowest over w) is within chi2(1, 0.95) = 3.84 residual variances of the best
   (``profile_interval``), open-ended where the section's levels never reach past the start, and
-  never narrower than the gap between its levels about the start (``covering_levels_gap``): a
-  section's output bends above the start, and a straight hinge through levels far above it
-  reads the start where their line meets the flat. On patient 28 of the standard population,
-  still (stop 44 of issue 14), the outlet's section had no level between 54.8 and 81.3 mA, and
-  its hinge put the start at 55.1 mA with an interval of 53.3-58.3 mA (the plant's: 60 mA). A
-  section approached from one side only cannot tell a start from a play band's shift of it, and
-  its interval is then as wide as the widest play: levels approached alternately from shut and
-  from the top (``targeted_level_currents``) see both edges and separate the two;
+  never narrower than the gaps between its levels about the starts it holds
+  (``covering_levels_gap``): a section's output bends above the start, and a straight hinge
+  through levels far above it reads the start where their line meets the flat. On patient 28
+  of the standard population, still (stop 44 of issue 14), the outlet's section had no level
+  between 54.8 and 81.3 mA, and its hinge put the start at 55.1 mA with an interval of
+  53.3-58.3 mA (the plant's: 60 mA). A section approached from one side only cannot tell a
+  start from a play band's shift of it, and its interval is then as wide as the widest play:
+  levels approached alternately from shut and from the top (``targeted_level_currents``) see
+  both edges and separate the two;
 - a level whose hold followed one with the other valves elsewhere (shut, or at another current)
   began far from the section and may not have settled: the pneumatic plant's head, filled from
   207.6 to 225.7 mm with the inlet open, was still 0.02 mm short of its level a minute later (a

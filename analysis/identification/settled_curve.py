@@ -52,10 +52,11 @@ Choices, and why:
 - **What the levels cannot tell apart is reported**: each starting current's 95 % profile
   interval, the starts whose best fit (saturation, sign and play at their best) raises the sum
   of squares by at most chi2(1, 0.95) = 3.84 residual variances over the best (a
-  likelihood-ratio interval for Gaussian errors), widened to the gap between the settled levels
-  nearest below and above the best start (``profile_interval.covering_levels_gap``): inside it
-  only the quadratic's shape places the start, and the plant's lift (gentle for 15 mA, then
-  steep) is not a quadratic.
+  likelihood-ratio interval for Gaussian errors), widened to the gaps between the settled
+  levels about the starts it holds, from the nearest level at or below its lowest to the
+  nearest above its highest (``profile_interval.covering_levels_gap``): inside a gap only the
+  quadratic's shape places a start, and the plant's lift (gentle for 15 mA, then steep) is not a
+  quadratic.
 """
 
 import functools

@@ -16,6 +16,11 @@ Each is judged as `maskless montecarlo` judges (``TrialRunner.patient_rows``): o
 fixed window, 20 s after the step to the run's end. Prints the share of patients within ±1 mm
 (p95), the p95's median, p90 and worst, per design; the identified starting currents against the
 plant's; and the machine. ``--keep DIR`` keeps each patient's recordings and model files.
+
+With ``--follow-advice``, a patient whose Hammerstein fit fell back to its joint search and
+advised longer holds runs the experiment `maskless workflow` then prints
+(``workflow.advised_excitation``: those holds, twice the duration) and is identified again: its
+starts, intervals and warnings under ``advised``. ``--only`` picks the patients by number.
 """
 
 import argparse
@@ -43,6 +48,7 @@ from maskless.diagrams.population import (
 from maskless.diagrams.workflow import (
     METHOD_EXCITATIONS,
     WORKFLOW_METHODS,
+    advised_excitation,
     identify_recording,
 )
 from maskless.systems.units import a_to_ma
@@ -55,10 +61,13 @@ DESIGNS = ("nominal plant", "pem", "hammerstein", ORACLE)
 ORDER = 2
 
 
-def patient_result(population_file: str, trial: int, folder: str, identify_only: bool) -> dict:
+def patient_result(
+    population_file: str, trial: int, folder: str, identify_only: bool, follow_advice: bool
+) -> dict:
     """One patient: both identifications on its plant, then its step under every design.
 
-    With ``identify_only``, the Hammerstein identification alone.
+    With ``identify_only``, the Hammerstein identification alone; with ``follow_advice``, the
+    advised experiment's too, where the fit advised one.
     """
     config = load_population(population_file)
     patient = draw_patient(config, trial)
@@ -77,10 +86,27 @@ def patient_result(population_file: str, trial: int, folder: str, identify_only:
         seconds[method] = time.perf_counter() - began
     rows = {} if identify_only else _design_rows(config, patient, plant, identified)
     hammerstein = identified["hammerstein"]
-    starts = {
-        name: hammerstein["valves"][name]["starting_current_ma"] - a_to_ma(valve.starting_current_a)
-        for name, valve in (("inlet", plant.inlet), ("outlet", plant.outlet))
-    }
+    starts = _start_errors_ma(hammerstein, plant)
+    advised = {}
+    if follow_advice and hammerstein["advised_hold_s"] is not None:
+        request = advised_excitation(
+            METHOD_EXCITATIONS["hammerstein"], hammerstein["advised_hold_s"]
+        )
+        began = time.perf_counter()
+        excited = excite_to_files(scenario, request, out / "hammerstein-advised" / "excitation")
+        found = identify_recording(
+            "hammerstein", excited, ORDER, out / "hammerstein-advised" / "identification"
+        )
+        advised = {
+            "advised": {
+                "hold_s": list(request.hold_s),
+                "duration_s": request.duration_s,
+                "starting_current_error_ma": _start_errors_ma(found, plant),
+                "starting_currents": found["valves"],
+                "warnings": found["warnings"],
+                "identification_s": time.perf_counter() - began,
+            }
+        }
     full_scale_mm = max(abs(valve["dc_gain_mm"]) for valve in hammerstein["valves"].values())
     scatter = hammerstein["levels_scatter"]
     return {
@@ -92,6 +118,15 @@ def patient_result(population_file: str, trial: int, folder: str, identify_only:
         "levels_scatter_share": None if scatter is None else 1e3 * scatter / full_scale_mm,
         "warnings": {method: found["warnings"] for method, found in identified.items()},
         "identification_s": seconds,
+        **advised,
+    }
+
+
+def _start_errors_ma(identified: dict, plant) -> dict:
+    """Each valve's identified starting current less the plant's (mA)."""
+    return {
+        name: identified["valves"][name]["starting_current_ma"] - a_to_ma(valve.starting_current_a)
+        for name, valve in (("inlet", plant.inlet), ("outlet", plant.outlet))
     }
 
 
@@ -142,18 +177,14 @@ def summarize(results: list[dict]) -> dict:
                 ),
             }
         summary[design] = per_design
-    errors = {
-        name: np.array([r["starting_current_error_ma"][name] for r in results])
-        for name in ("inlet", "outlet")
-    }
-    summary["hammerstein_starting_currents"] = {
-        name: {
-            "within_5ma": int(np.sum(np.abs(e) <= 5.0)),
-            "mean_ma": float(e.mean()),
-            "worst_ma": float(e[np.argmax(np.abs(e))]),
+    summary["hammerstein_starting_currents"] = _starts_summary(results)
+    followed = [r["advised"] for r in results if "advised" in r]
+    if followed:
+        summary["advised"] = {
+            "patients": len(followed),
+            "starting_currents": _starts_summary(followed),
+            "warned": int(sum(bool(r["warnings"]) for r in followed)),
         }
-        for name, e in errors.items()
-    }
     summary["identifications_warned"] = {
         method: int(sum(bool(r["warnings"][method]) for r in results))
         for method in results[0]["warnings"]
@@ -171,6 +202,22 @@ def summarize(results: list[dict]) -> dict:
     return summary
 
 
+def _starts_summary(results: list[dict]) -> dict:
+    """Per valve: starts within 5 mA of the plant's, the mean and the worst error (mA)."""
+    errors = {
+        name: np.array([r["starting_current_error_ma"][name] for r in results])
+        for name in ("inlet", "outlet")
+    }
+    return {
+        name: {
+            "within_5ma": int(np.sum(np.abs(e) <= 5.0)),
+            "mean_ma": float(e.mean()),
+            "worst_ma": float(e[np.argmax(np.abs(e))]),
+        }
+        for name, e in errors.items()
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     source = parser.add_mutually_exclusive_group()
@@ -184,6 +231,14 @@ def main() -> None:
         "cameras' modelled noise)",
     )
     parser.add_argument("--trials", type=int, default=40, help="the first N patients (40)")
+    parser.add_argument(
+        "--only", type=int, nargs="+", metavar="N", help="these patients instead of the first N"
+    )
+    parser.add_argument(
+        "--follow-advice",
+        action="store_true",
+        help="with --identify-only: run the experiment a fit's advice asks for, and fit it too",
+    )
     parser.add_argument("--jobs", type=int, default=2, help="processes (2)")
     parser.add_argument("--keep", type=Path, default=None, metavar="DIR", help="keep the files")
     parser.add_argument(
@@ -194,6 +249,9 @@ def main() -> None:
     args = parser.parse_args()
     if args.trials < 1 or args.jobs < 1:
         raise ValueError(f"--trials {args.trials}, --jobs {args.jobs}: expected at least 1 each")
+    if args.follow_advice and not args.identify_only:
+        raise ValueError("--follow-advice: expected with --identify-only")
+    trials = args.only or list(range(args.trials))
     population_file = str(args.population or population_preset_path(args.preset))
     began = time.perf_counter()
     with tempfile.TemporaryDirectory() as scratch:
@@ -205,20 +263,27 @@ def main() -> None:
         folder = str(args.keep or scratch)
         with ProcessPoolExecutor(args.jobs) as pool:
             futures = [
-                pool.submit(patient_result, population_file, trial, folder, args.identify_only)
-                for trial in range(args.trials)
+                pool.submit(
+                    patient_result,
+                    population_file,
+                    trial,
+                    folder,
+                    args.identify_only,
+                    args.follow_advice,
+                )
+                for trial in trials
             ]
             results = []
             for future in futures:
                 results.append(future.result())
-                print(f"patient {len(results)} of {args.trials}", file=sys.stderr, flush=True)
+                print(f"patient {len(results)} of {len(trials)}", file=sys.stderr, flush=True)
     print(
         json.dumps(
             {
                 "benchmark": "identified_control",
                 "population": str(args.population or args.preset),
                 "scenario_presets": args.scenario_presets,
-                "trials": args.trials,
+                "trials": trials,
                 "wall_s": time.perf_counter() - began,
                 "summary": summarize(results),
                 "patients": results,

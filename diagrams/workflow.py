@@ -84,6 +84,19 @@ def excite_command(request: ExcitationRequest, seed: int, config: Path | None, o
     return "maskless excite " + shlex.join([*argv, *_common(seed, config, out)])
 
 
+def advised_excitation(request: ExcitationRequest, hold_s: float) -> ExcitationRequest:
+    """``request`` as a Hammerstein fit that fell back to its joint search advises it.
+
+    Holds of at least ``hold_s`` (whole seconds, up to half as long again, as the design's own
+    span runs), over twice the duration: so long a hold leaves an hour half the settled levels
+    (``hammerstein._joint_search_warnings`` says what was measured).
+    """
+    shortest = float(math.ceil(hold_s))
+    return dataclasses.replace(
+        request, hold_s=(shortest, 1.5 * shortest), duration_s=2.0 * request.duration_s
+    )
+
+
 def identify_command(identify_flags: dict, out: Path) -> str:
     """The `maskless identify` command line with ``identify_flags`` (flag -> value).
 
@@ -173,6 +186,12 @@ def run_workflow(
     identified = identify_recording(method, excited, order, out / "identification", echo)
     for warning in identified["warnings"]:
         echo(f"WARNING: {warning}")
+    advised = identified.get("advised_hold_s")
+    if advised is not None:
+        identified["advised_command"] = excite_command(
+            advised_excitation(excitation, advised), seed, config, out / "excitation-advised"
+        )
+        echo(f"ADVICE: {identified['advised_command']}")
     controller = OffsetFreeLqg(design_model_file=identified["model_file"])
     closed_loop_scenario = dataclasses.replace(
         scenario, controller=controller, duration_s=closed_loop_s
@@ -284,6 +303,7 @@ def _identify_hammerstein(excited: dict, order: int, out: Path, echo) -> dict:
         **{key: model[key] for key in fits},
         "poles": model["poles"],
         "levels_scatter": model["levels_scatter"],
+        "advised_hold_s": model["advised_hold_s"],
         "plot": report["plot"],
         "warnings": warnings,
     }
@@ -318,6 +338,11 @@ def format_workflow(result: dict) -> str:
             f"{valve['dc_gain_mm']:.2f} mm"
         )
     lines += [f"   WARNING: {warning}" for warning in identified["warnings"]]
+    if identified.get("advised_command"):
+        lines.append(
+            "   to follow the advice, run the experiment again (and identify its record as "
+            f"above): {identified['advised_command']}"
+        )
     closed_loop = result["closed_loop"]
     lines.append(
         f"3. simulate on the {closed_loop['plant']} plant, controller designed on that model:"

@@ -153,6 +153,10 @@ def test_maps_from_the_joint_search_are_named_with_the_holds_that_would_settle(p
     advised_s = float(warning.split("hold levels at least ")[1].split(" s")[0])
     # Holds of the advised length settle on the planted plant (the ARX pole reads 0.944).
     assert advised_s > 4.0 * TS / -np.log(0.95)
+    # Over twice the record, so that as many of them settle; the figure is the fit's own.
+    assert "in an experiment twice as long as this one" in warning
+    assert planted_fit[2].advised_hold_s == pytest.approx(advised_s, abs=0.5)
+    assert planted_fit[2].summary()["advised_hold_s"] == planted_fit[2].advised_hold_s
     assert planted_fit[2].summary()["valves"]["inlet"]["starting_current_from"] == (
         "the joint search"
     )

@@ -296,6 +296,8 @@ def test_with_settled_holds_the_hammerstein_fit_finds_the_planted_curves_and_pol
     assert fit.simulation_fit_percent > 98.0
     for (low, high), (start, *_) in zip(fit.starting_current_spread(), PLANTED_CURVES, strict=True):
         assert low <= start <= high
+    # Settled levels read the curves: no longer holds to advise.
+    assert fit.advised_hold_s is None and fit.summary()["advised_hold_s"] is None
 
 
 def _record_with_an_inlet_top_held(planted, u, seconds):

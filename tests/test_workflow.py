@@ -1,6 +1,7 @@
 """The workflow end to end: identified gain against the plant's linearisations; the loop tracks."""
 
 import argparse
+import dataclasses
 import json
 import shlex
 from pathlib import Path
@@ -16,7 +17,12 @@ from maskless.diagrams.excitation_design import ExcitationRequest
 from maskless.diagrams.hammerstein_run import MAPS_EXPLAIN_VERDICT, hammerstein_verdict
 from maskless.diagrams.scenario import load_scenario, shipped_presets
 from maskless.diagrams.simulation import simulate_to_files
-from maskless.diagrams.workflow import HAMMERSTEIN_EXCITATION, excite_command, run_workflow
+from maskless.diagrams.workflow import (
+    HAMMERSTEIN_EXCITATION,
+    advised_excitation,
+    excite_command,
+    run_workflow,
+)
 from maskless.systems.hammerstein_model import HammersteinModel
 from maskless.systems.plant.pneumatic_design import linearize_pneumatic_plant
 from maskless.systems.units import a_to_ma
@@ -147,6 +153,7 @@ def redo_each_stage_and_compare(out: Path, lines: list[str], capsys) -> None:
         ExcitationRequest(signal="multilevel", valve_drive="independent", hold_s=(0.5, 20.0)),
         ExcitationRequest(signal="multisine", valve_drive="split-range", band_hz=(0.01, 1.0)),
         HAMMERSTEIN_EXCITATION,
+        advised_excitation(HAMMERSTEIN_EXCITATION, 86.2),
     ],
 )
 def test_the_printed_excite_command_asks_for_the_same_experiment(request_):
@@ -239,6 +246,7 @@ def test_the_hammerstein_stage_passes_on_the_fits_warnings_and_a_failed_verdict(
         "linear_validation_simulation_fit_percent": -135.8,
         "poles": [[0.98, 0.0], [0.5, 0.0]],
         "levels_scatter": None,
+        "advised_hold_s": 86.2,
         "warnings": [searched],
     }
     report = {"models": [model], "plot": None}
@@ -253,3 +261,45 @@ def test_the_hammerstein_stage_passes_on_the_fits_warnings_and_a_failed_verdict(
     )
     assert "inlet starts at 107.7 mA (its searches ended at 107.7-107.7 mA)" in text
     assert f"WARNING: {searched}" in text and "does not explain the validation part" in text
+
+
+def test_the_advised_experiment_holds_levels_as_advised_over_twice_the_duration():
+    advised = advised_excitation(HAMMERSTEIN_EXCITATION, 86.2)
+    assert advised.hold_s == (87.0, 130.5)
+    assert advised.duration_s == 2 * HAMMERSTEIN_EXCITATION.duration_s
+    # The rest of the experiment is the same.
+    assert advised == dataclasses.replace(
+        HAMMERSTEIN_EXCITATION, hold_s=advised.hold_s, duration_s=advised.duration_s
+    )
+
+
+class _StoppedAfterIdentifyError(Exception):
+    pass
+
+
+def test_a_fit_that_advises_longer_holds_gets_the_experiment_to_run_printed(
+    monkeypatch, tmp_path, hammerstein_workflow
+):
+    # The workflow's wiring: the identify stage's advice becomes an excite command, echoed and
+    # shown with the stages. The stages themselves are stand-ins; the closed loop is not run.
+    excited = {"files": {"recording": "run.mcap"}, "sample_period_s": 1 / 15}
+    identified = {**hammerstein_workflow[1]["identification"], "advised_hold_s": 86.2}
+    monkeypatch.setattr(workflow_module, "excite_to_files", lambda *a, **k: excited)
+    monkeypatch.setattr(workflow_module, "identify_recording", lambda *a, **k: identified)
+
+    def stop(**_):
+        raise _StoppedAfterIdentifyError
+
+    monkeypatch.setattr(workflow_module, "OffsetFreeLqg", stop)
+    lines = []
+    with pytest.raises(_StoppedAfterIdentifyError):
+        run_workflow(tmp_path, method="hammerstein", echo=lines.append)
+    expected = excite_command(
+        advised_excitation(HAMMERSTEIN_EXCITATION, 86.2), 0, None, tmp_path / "excitation-advised"
+    )
+    assert lines[-1] == f"ADVICE: {expected}"
+    assert identified["advised_command"] == expected
+    text = workflow_module.format_workflow(
+        {**hammerstein_workflow[1], "identification": identified}
+    )
+    assert f"run the experiment again (and identify its record as above): {expected}" in text

@@ -107,8 +107,8 @@ class HammersteinFit:
         highest_currents: per valve, the highest current of the estimation record: a saturation
             past it was never seen, only allowed.
         start_intervals: per valve, the starting currents the settled holds cannot tell apart
-            (``settled_curve``: the 95 % profile interval, widened to the gap between the
-            levels about the start), when the maps came from them; else empty.
+            (``settled_curve``: the 95 % profile interval, widened to the gaps between the
+            levels about the starts it holds), when the maps came from them; else empty.
         profile_intervals: per valve, the 95 % profile interval alone; empty as
             ``start_intervals``. The sequential design aims its holds at it
             (``valve_level_experiment.fit_reading``).
@@ -121,6 +121,8 @@ class HammersteinFit:
             alone (the others shut), in the record's order; empty as ``start_intervals``.
         levels_scatter: the settled levels' RMS residual about the static curves
             (``StaticCurves.residual_rms``), in the output's unit; None without them.
+        advised_hold_s: where too few holds settled (the joint search), the shortest hold
+            (s) the record's settling time asks for (``advised_hold_s``); else None.
         warnings: what makes the fit suspect, one sentence each.
         The fit percentages are over the whole estimation record, section holds included,
         where the dynamics were not fitted (no sum of the maps describes them).
@@ -141,6 +143,7 @@ class HammersteinFit:
     starts_from_sections: tuple[bool, ...] = ()
     settled_currents: tuple[tuple[float, ...], ...] = ()
     levels_scatter: float | None = None
+    advised_hold_s: float | None = None
     warnings: tuple[str, ...] = ()
 
     def starting_current_spread(self) -> list[tuple[float, float]]:
@@ -201,6 +204,7 @@ class HammersteinFit:
             "valves": valves,
             "poles": [[float(p.real), float(p.imag)] for p in model.poles()],
             "levels_scatter": self.levels_scatter,
+            "advised_hold_s": self.advised_hold_s,
             "warnings": list(self.warnings),
         }
 
@@ -322,10 +326,12 @@ def estimate_hammerstein(
     fit = dataclasses.replace(fit, searches=searches)
     if curves is None:
         # The searches' ends are the spread only where no settled holds gave intervals.
+        advised = None if linear else advised_hold_s(record_pole, sample_period_s)
         return dataclasses.replace(
             fit,
             search_tolerance=search_cost_tolerance(problem.residuals(solution.x)),
-            warnings=() if linear else _joint_search_warnings(record_pole, sample_period_s),
+            advised_hold_s=advised,
+            warnings=() if linear else _joint_search_warnings(record_pole, advised),
         )
     settle = _settle_samples(slowest)
     return dataclasses.replace(
@@ -354,22 +360,42 @@ def _section_warnings(curves) -> tuple[str, ...]:
     )
 
 
-def _joint_search_warnings(slowest: float, sample_period_s: float) -> tuple[str, ...]:
+# An advised hold is the settling time and this much again: a level needs it and an eighth more.
+_HOLD_MARGIN = 1.5
+
+
+def advised_hold_s(slowest: float, sample_period_s: float) -> float | None:
+    """The shortest hold (s) a record whose slowest pole is ``slowest`` settles in, with margin.
+
+    The settling time and half as long again (``_HOLD_MARGIN``). None for a pole at or beyond 1,
+    which no hold settles.
+    """
+    if not 0.0 < slowest < 1.0:
+        return None
+    return _HOLD_MARGIN * _settle_samples(slowest) * sample_period_s
+
+
+def _joint_search_warnings(slowest: float, advised_s: float | None) -> tuple[str, ...]:
     """The maps came from the joint search: its starts are where searches ended, not measured.
 
     On five of 40 still patients of the standard population (``benchmarks/identified_control.py
     --scenario-presets``) the fit fell back to it and missed the plant's starting currents by
     16-125 mA, three with a single current for a spread; on patient 11 the slowest pole
-    (0.9954) asks 65 s of a level, longer than every hold of the design. The advice is the
-    settling time and half as long again: a level needs it and an eighth more, with margin.
+    (0.9954) asks 65 s of a level, longer than every hold of the design. The advice is
+    ``advised_hold_s``, over an experiment twice as long: holds so long leave an hour half as
+    many settled levels as the shipped design gives a typical patient (stop 46 of issue 14:
+    patients 11 and 36 kept 29 and 25 in the fitted 48 minutes with their advised holds, patients
+    0 and 5 51 and 56 with the design's), and of the 8 starting currents of the four slow
+    patients (11, 23, 32, 36) 1 then came within 5 mA; over two hours (52 levels for 11 and 36),
+    all 8.
     """
-    if not 0.0 < slowest < 1.0:
+    if advised_s is None:
         advice = "the record's slowest pole lies at or beyond 1, so no hold could settle"
     else:
-        settle_s = _settle_samples(slowest) * sample_period_s
         advice = (
-            f"the record's slowest pole ({slowest:.4f}) takes {settle_s:.0f} s to settle: hold "
-            f"levels at least {1.5 * settle_s:.0f} s"
+            f"the record's slowest pole ({slowest:.4f}) takes {advised_s / _HOLD_MARGIN:.0f} s to "
+            f"settle: hold levels at least {advised_s:.0f} s, in an experiment twice as long as "
+            "this one, so that as many levels settle"
         )
     return (
         "too few holds settled to read the static curves from them, so the maps come from the "

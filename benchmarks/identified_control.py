@@ -251,6 +251,8 @@ def main() -> None:
         raise ValueError(f"--trials {args.trials}, --jobs {args.jobs}: expected at least 1 each")
     if args.follow_advice and not args.identify_only:
         raise ValueError("--follow-advice: expected with --identify-only")
+    if args.only is not None and min(args.only) < 0:
+        raise ValueError(f"--only {args.only}: expected patient numbers from 0")
     trials = args.only or list(range(args.trials))
     population_file = str(args.population or population_preset_path(args.preset))
     began = time.perf_counter()

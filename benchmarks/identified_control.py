@@ -17,8 +17,9 @@ fixed window, 20 s after the step to the run's end. Prints the share of patients
 (p95), the p95's median, p90 and worst, per design; the identified starting currents against the
 plant's; and the machine. ``--keep DIR`` keeps each patient's recordings and model files.
 
-With ``--follow-advice``, a patient whose Hammerstein fit fell back to its joint search and
-advised longer holds runs the experiment `maskless workflow` then prints
+With ``--follow-advice``, a patient whose Hammerstein fit advised longer holds (it fell back to
+its joint search, or its settled levels were few) runs the experiment `maskless workflow` then
+prints
 (``workflow.advised_excitation``: those holds, twice the duration) and is identified again: its
 starts, intervals and warnings under ``advised``. ``--only`` picks the patients by number.
 """

@@ -85,7 +85,7 @@ def excite_command(request: ExcitationRequest, seed: int, config: Path | None, o
 
 
 def advised_excitation(request: ExcitationRequest, hold_s: float) -> ExcitationRequest:
-    """``request`` as a Hammerstein fit that fell back to its joint search advises it.
+    """``request`` as a Hammerstein fit that advises longer holds (``advised_hold_s``) asks.
 
     Holds of at least ``hold_s`` (whole seconds, up to half as long again, as the design's own
     span runs), over twice the duration: so long a hold leaves an hour half the settled levels

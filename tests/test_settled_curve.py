@@ -219,7 +219,7 @@ def test_a_valve_held_at_one_level_has_no_curve():
     assert fit_static_curves(levels, 0.95, 1.5) is None
 
 
-def _planted_hammerstein_record():
+def _planted_hammerstein_record(hold_s=(10.0, 40.0)):
     """(the planted model, currents (N, 2) in A, its noisy output (N,) in m)."""
     planted = HammersteinModel(
         maps=tuple(_planted_map(*curve) for curve in PLANTED_CURVES),
@@ -234,7 +234,7 @@ def _planted_hammerstein_record():
     # Holds of 10-40 s: the record's ARX model (a linear model of a nonlinear record) puts its
     # slowest pole at about 0.98, so holds count as settled after some 20 s; 40 minutes give each
     # valve a dozen settled levels across its range.
-    u = random_level_currents(24000, TS, (0.19, 0.19), (10.0, 40.0), 2).T
+    u = random_level_currents(24000, TS, (0.19, 0.19), hold_s, 2).T
     rng = np.random.default_rng(2)
     return planted, u, planted.simulate(u) + 1e-4 * rng.standard_normal(u.shape[0])
 
@@ -298,6 +298,20 @@ def test_with_settled_holds_the_hammerstein_fit_finds_the_planted_curves_and_pol
         assert low <= start <= high
     # Settled levels read the curves: no longer holds to advise.
     assert fit.advised_hold_s is None and fit.summary()["advised_hold_s"] is None
+
+
+def test_settled_levels_that_average_little_of_the_record_advise_longer_holds():
+    # Holds of 5-16 s against a settling time of some 14 s: enough settle to read curves from,
+    # but they average a twelfth of the record, and the starts they give are off (the inlet's
+    # read at 25 mA, planted at 60). The holds advised settle the planted plant (poles 0.95
+    # and 0.8, 4 time constants 7.8 s); the ordinary record (10-40 s holds) gets no advice.
+    _, u, y = _planted_hammerstein_record(hold_s=(5.0, 16.0))
+    fit = estimate_hammerstein(u, y, 2, TS, input_unit="A", output_unit="m", settle_by_holds=True)
+    assert fit.start_intervals  # from settled levels, not the joint search
+    (warning,) = [w for w in fit.warnings if w.startswith("the settled levels average")]
+    assert "% of the record, so the starting currents rest on few levels" in warning
+    assert f"hold levels at least {fit.advised_hold_s:.0f} s" in warning
+    assert fit.advised_hold_s > 4.0 * TS / -np.log(0.95)
 
 
 def _record_with_an_inlet_top_held(planted, u, seconds):

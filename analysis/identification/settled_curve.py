@@ -143,7 +143,7 @@ class StaticCurves:
     Currents in the units of the levels they were fitted to; ``increments`` (inputs, 2) are the
     Bernstein coefficients' non-negative steps times the input's sign, so each curve's full value
     (its DC gain) is their sum; ``start_intervals`` (inputs, 2) the starting currents the levels
-    cannot tell apart (the 95 % profile interval, widened to the gap of levels about the start),
+    cannot tell apart (the 95 % profile interval, widened to the gaps of levels about its starts),
     ``profile_intervals`` (inputs, 2) the profile intervals alone; ``play_half_widths``
     (inputs,) the half-width of each valve's play band (its section's, where one found its
     start); ``from_sections`` (inputs,) whether a section found it (``section_start``);

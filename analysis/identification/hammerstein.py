@@ -423,8 +423,8 @@ def _thin_levels_warnings(
     """
     return (
         f"the settled levels average {100 * settled_share:.0f} % of the record, so the starting "
-        f"currents rest on few levels and their intervals are wide: {_advice(slowest, advised_s)}"
-        ", so that more levels settle.",
+        f"currents rest on few levels: {_advice(slowest, advised_s)}, so that more levels "
+        "settle.",
     )
 
 

@@ -79,12 +79,9 @@ def patient_result(
     out = Path(folder) / f"trial{trial}"
     identified, seconds = {}, {}
     for method in ("hammerstein",) if identify_only else WORKFLOW_METHODS:
-        began = time.perf_counter()
-        excited = excite_to_files(scenario, METHOD_EXCITATIONS[method], out / method / "excitation")
-        identified[method] = identify_recording(
-            method, excited, ORDER, out / method / "identification"
+        identified[method], seconds[method] = _identified(
+            scenario, METHOD_EXCITATIONS[method], method, out / method
         )
-        seconds[method] = time.perf_counter() - began
     rows = {} if identify_only else _design_rows(config, patient, plant, identified)
     hammerstein = identified["hammerstein"]
     starts = _start_errors_ma(hammerstein, plant)
@@ -93,11 +90,7 @@ def patient_result(
         request = advised_excitation(
             METHOD_EXCITATIONS["hammerstein"], hammerstein["advised_hold_s"]
         )
-        began = time.perf_counter()
-        excited = excite_to_files(scenario, request, out / "hammerstein-advised" / "excitation")
-        found = identify_recording(
-            "hammerstein", excited, ORDER, out / "hammerstein-advised" / "identification"
-        )
+        found, found_s = _identified(scenario, request, "hammerstein", out / "hammerstein-advised")
         advised = {
             "advised": {
                 "hold_s": list(request.hold_s),
@@ -105,7 +98,7 @@ def patient_result(
                 "starting_current_error_ma": _start_errors_ma(found, plant),
                 "starting_currents": found["valves"],
                 "warnings": found["warnings"],
-                "identification_s": time.perf_counter() - began,
+                "identification_s": found_s,
             }
         }
     full_scale_mm = max(abs(valve["dc_gain_mm"]) for valve in hammerstein["valves"].values())
@@ -121,6 +114,17 @@ def patient_result(
         "identification_s": seconds,
         **advised,
     }
+
+
+def _identified(scenario, request, method: str, folder: Path) -> tuple[dict, float]:
+    """``method``'s identification of ``request`` run on ``scenario``, and its wall time (s).
+
+    The experiment goes to ``folder``/excitation, the model to ``folder``/identification.
+    """
+    began = time.perf_counter()
+    excited = excite_to_files(scenario, request, folder / "excitation")
+    found = identify_recording(method, excited, ORDER, folder / "identification")
+    return found, time.perf_counter() - began
 
 
 def _start_errors_ma(identified: dict, plant) -> dict:

@@ -281,6 +281,14 @@ def estimate_hammerstein(
     curves, slowest, counted, settled_share = (
         (None, None, None, None) if linear else _settled_curves(u, y, record_pole, options)
     )
+    # Longer holds are advised where too few settled to read the curves, or the settled levels
+    # the curves were read from average little of the record.
+    thin = curves is not None and settled_share < SETTLED_SHARE
+    advised = (
+        advised_hold_s(record_pole, sample_period_s)
+        if not linear and (curves is None or thin)
+        else None
+    )
     problem = HammersteinProblem(
         u, y, order, map_segments, input_delay_samples, linear, curves, slowest, counted
     )
@@ -330,7 +338,6 @@ def estimate_hammerstein(
     fit = dataclasses.replace(fit, searches=searches)
     if curves is None:
         # The searches' ends are the spread only where no settled holds gave intervals.
-        advised = None if linear else advised_hold_s(record_pole, sample_period_s)
         return dataclasses.replace(
             fit,
             search_tolerance=search_cost_tolerance(problem.residuals(solution.x)),
@@ -338,8 +345,6 @@ def estimate_hammerstein(
             warnings=() if linear else _joint_search_warnings(record_pole, advised),
         )
     settle = _settle_samples(slowest)
-    thin = settled_share < SETTLED_SHARE
-    advised = advised_hold_s(slowest, sample_period_s) if thin else None
     return dataclasses.replace(
         fit,
         advised_hold_s=advised,
@@ -352,7 +357,7 @@ def estimate_hammerstein(
         warnings=_section_warnings(curves)
         + _extrapolation_warnings(curves, u, settle, input_unit)
         + _scatter_warnings(curves, output_unit)
-        + (_thin_levels_warnings(settled_share, slowest, advised) if thin else ()),
+        + (_thin_levels_warnings(settled_share, slowest, advised) if advised else ()),
     )
 
 

@@ -204,6 +204,14 @@ def test_the_summary_names_where_each_start_came_from(planted_fit):
     assert sectioned["outlet"]["starting_current_from"].startswith("a section")
     assert sectioned["outlet"]["play_half_width"] == 0.0025
     assert sectioned["outlet"]["starting_current_spread"] == [0.04, 0.06]
+    assert "bent" not in sectioned["outlet"]["starting_current_from"]
+    bent = dataclasses.replace(
+        fit,
+        start_intervals=((0.05, 0.07), (0.04, 0.06)),
+        starts_from_sections=(False, True),
+        starts_from_bent_sections=(False, True),
+    ).summary()["valves"]["outlet"]["starting_current_from"]
+    assert bent.startswith("a section") and bent.endswith("its hinge bent once above the start")
 
 
 def test_a_search_stopped_early_is_named_not_raised():

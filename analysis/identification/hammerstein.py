@@ -79,6 +79,9 @@ LEVELS_SCATTER_SHARE = 0.02
 SETTLED_SHARE = 0.2
 # Where a start came from when no settled holds gave it (``HammersteinFit.summary``).
 JOINT_SEARCH_SOURCE = "the joint search"
+# Where a section gave it, and what is added where that section's hinge was bent above it.
+SECTION_SOURCE = "a section: its settled levels with the other valve held open"
+BENT_SECTION_CLAUSE = ", its hinge bent once above the start"
 # A two-valve record's inputs, in its columns' order.
 VALVE_NAMES = ("inlet", "outlet")
 # A reflection coefficient this close to +-1 sits where tanh is flat (``_search``).
@@ -120,6 +123,8 @@ class HammersteinFit:
         starts_from_sections: per valve, whether a section of the record (``section_start``:
             its levels with the other valve held open) gave its starting current; empty as
             ``start_intervals``.
+        starts_from_bent_sections: per valve, whether that section's hinge was bent once above
+            the start (a travel stop's knee, ``section_start``); empty as ``start_intervals``.
         settled_currents: per valve, the currents of the settled holds that showed its curve
             alone (the others shut), in the record's order; empty as ``start_intervals``.
         levels_scatter: the settled levels' RMS residual about the static curves
@@ -145,6 +150,7 @@ class HammersteinFit:
     profile_intervals: tuple[tuple[float, float], ...] = ()
     play_half_widths: tuple[float, ...] = ()
     starts_from_sections: tuple[bool, ...] = ()
+    starts_from_bent_sections: tuple[bool, ...] = ()
     settled_currents: tuple[tuple[float, ...], ...] = ()
     levels_scatter: float | None = None
     advised_hold_s: float | None = None
@@ -180,10 +186,11 @@ class HammersteinFit:
         for i, valve_map in enumerate(model.maps):
             name = input_names[i] if i < len(input_names) else f"input_{i}"
             from_section = bool(self.starts_from_sections) and self.starts_from_sections[i]
+            bent = bool(self.starts_from_bent_sections) and self.starts_from_bent_sections[i]
             valves[name] = {
                 "starting_current": valve_map.starting_current,
                 "starting_current_from": (
-                    "a section: its settled levels with the other valve held open"
+                    SECTION_SOURCE + (BENT_SECTION_CLAUSE if bent else "")
                     if from_section
                     else "the settled levels"
                     if self.start_intervals
@@ -352,6 +359,7 @@ def estimate_hammerstein(
         profile_intervals=tuple(map(tuple, curves.profile_intervals.tolist())),
         play_half_widths=curves.play_half_widths,
         starts_from_sections=curves.from_sections,
+        starts_from_bent_sections=curves.bent_sections,
         settled_currents=tuple(tuple(c.tolist()) for c in curves.settled_currents),
         levels_scatter=curves.residual_rms,
         warnings=_section_warnings(curves)

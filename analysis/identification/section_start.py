@@ -32,6 +32,18 @@ reads each valve's start from its section alone, here:
   start from a play band's shift of it, and its interval is then as wide as the widest play:
   levels approached alternately from shut and from the top (``targeted_level_currents``) see
   both edges and separate the two;
+- above its start a section's slope can change once more, where the head leaves a travel stop:
+  with the inlet at 190 mA, still patient 34 of the standard population rests on its upper stop
+  (a stiff spring) until the outlet passes 81.5 mA, and its lift falls 0.035 mm per mA there,
+  0.19 past it. The one hinge then meets the flat at that knee: with its advised holds (stop 46
+  of issue 14) the outlet's start read 76.5 mA with an interval of 72.5-80.2 mA, and 76.5 mA
+  (67.1-81.1) on the plant's noise-free lift at its spools, the plant's 60 mA, unwarned. So a
+  second knot k above s is fitted too, y = a + b max(0, p - s) + c max(0, p - k), b and b + c of
+  one sign (an opening valve only adds flow: a stop changes the lift's slope, never its
+  direction), and the start and its interval are read from it where it lowers the sum of
+  squares by more than F(2, n - 6, 0.95) residual variances per added parameter (c and k: an F
+  test of nested least squares; with n >= ``MIN_BENT_SECTION_LEVELS`` levels); elsewhere the one
+  hinge stands, bit for bit. Patient 34's outlet then reads 60.4 mA (47.1-65.0);
 - a level whose hold followed one with the other valves elsewhere (shut, or at another current)
   began far from the section and may not have settled: the pneumatic plant's head, filled from
   207.6 to 225.7 mm with the inlet open, was still 0.02 mm short of its level a minute later (a
@@ -45,6 +57,8 @@ reads each valve's start from its section alone, here:
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.optimize
+import scipy.stats
 
 from maskless.analysis.identification.profile_interval import (
     CHI2_95,
@@ -60,6 +74,9 @@ MIN_SECTION_LEVELS = 6
 PLAY_HALF_WIDTHS = np.arange(0.0, 0.05 + 1e-12, 0.0025)
 # The starts' grid step, as a fraction of the range (``settled_curve``'s refined step).
 _START_STEP = 1.0 / 400.0
+# Levels a section needs before a second knot is tried: its 6 parameters (two hinges, a level,
+# a play width) and 2 residual degrees of freedom for the F test (module docstring).
+MIN_BENT_SECTION_LEVELS = 8
 
 
 @dataclass(frozen=True)
@@ -72,12 +89,15 @@ class SectionStart:
             95 % rise, or in the gap between its levels about the start.
         play_half_width: the play band's half-width at the best fit.
         profile_interval: (lowest, highest) start within the profile's 95 % rise alone.
+        bent: whether the start was read from the hinge bent once above it (a second knot
+            passed the F test), not from the plain hinge.
     """
 
     start: float
     interval: tuple[float, float]
     play_half_width: float
     profile_interval: tuple[float, float]
+    bent: bool = False
 
 
 def play_operator(currents: np.ndarray, half_width: float) -> np.ndarray:
@@ -175,22 +195,23 @@ def section_start(
     levels = hold_currents[level_holds[mask]]
     lowest = max(levels.min() - PLAY_HALF_WIDTHS[-1], 0.0)
     starts = np.arange(lowest, min(levels.max(), max_start) + 1e-12, _START_STEP)
-    # (half-widths, starts) residual sum of squares of the best hinge.
-    sse = np.empty((PLAY_HALF_WIDTHS.size, starts.size))
     # Where the spool rests at each level, per half-width: the best one's also bounds the gap.
     spools = [play_operator(hold_currents, w)[level_holds[mask]] for w in PLAY_HALF_WIDTHS]
-    for row, spool in enumerate(spools):
-        hinge = np.maximum(spool[:, None] - starts[None, :], 0.0)
-        hinge -= hinge.mean(axis=0)
-        spread = np.sum(hinge**2, axis=0)
-        along = y @ hinge
-        explained = np.divide(along**2, spread, out=np.zeros_like(spread), where=spread > 0)
-        # Rounding can leave an exact fit a hair below zero.
-        sse[row] = np.maximum(y @ y - explained, 0.0)
+    # (half-widths, starts) residual sum of squares of the best hinge, and of the best bent one.
+    hinged = np.array([_hinge_sums(spool, y, starts) for spool in spools])
+    sse, parameters, bent_read = hinged, 4, False
+    if y.size >= MIN_BENT_SECTION_LEVELS:
+        bent = np.array([_bent_hinge_sums(spool, y, starts) for spool in spools])
+        # The plain hinge's start off the grid: two knots a step apart bracket a start between
+        # grid points and would pass the test on the grid's error alone.
+        row, column = np.unravel_index(np.argmin(hinged), hinged.shape)
+        plain = _off_grid_hinge_sum(spools[row], y, starts[column])
+        if _second_knot_significant(plain, bent.min(), y):
+            sse, parameters, bent_read = bent, 6, True
     # The lowest sum of squares (on exact ties the first: the narrowest play, the lowest start).
     row, column = np.unravel_index(np.argmin(sse), sse.shape)
     profile = sse.min(axis=0)
-    threshold = sse[row, column] * (1.0 + CHI2_95 / max(1, y.size - 4))
+    threshold = sse[row, column] * (1.0 + CHI2_95 / max(1, y.size - parameters))
     low, high = profile_interval(starts, profile, threshold, starts[column], _START_STEP)
     # The profile crosses its threshold somewhere between grid points: a step past each end.
     low, high = max(low - _START_STEP, 0.0), high + _START_STEP
@@ -204,4 +225,62 @@ def section_start(
         interval=covering_levels_gap(profiled, spools[row], starts[column], 0.0, max_start),
         play_half_width=float(PLAY_HALF_WIDTHS[row]),
         profile_interval=profiled,
+        bent=bent_read,
     )
+
+
+def _hinge_sums(spool: np.ndarray, y: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """(G,) the residual sum of squares of ``y`` (centred) on a + b max(0, spool - s), per s."""
+    hinge = np.maximum(spool[:, None] - starts[None, :], 0.0)
+    hinge -= hinge.mean(axis=0)
+    spread = np.sum(hinge**2, axis=0)
+    along = y @ hinge
+    explained = np.divide(along**2, spread, out=np.zeros_like(spread), where=spread > 0)
+    # Rounding can leave an exact fit a hair below zero.
+    return np.maximum(y @ y - explained, 0.0)
+
+
+def _off_grid_hinge_sum(spool: np.ndarray, y: np.ndarray, start: float) -> float:
+    """The plain hinge's lowest residual sum of squares within a grid step of ``start``."""
+    found = scipy.optimize.minimize_scalar(
+        lambda s: _hinge_sums(spool, y, np.array([s]))[0],
+        bounds=(start - _START_STEP, start + _START_STEP),
+        method="bounded",
+        options={"xatol": 1e-9},
+    )
+    return min(float(found.fun), float(_hinge_sums(spool, y, np.array([start]))[0]))
+
+
+def _bent_hinge_sums(spool: np.ndarray, y: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """(G,) per start s, the lowest residual sum of squares of a hinge at s bent once above it.
+
+    y (centred) on a + b max(0, spool - s) + c max(0, spool - k) over every knot k > s of
+    ``starts``, with b and b + c of one sign (module docstring); no lower than the plain hinge
+    at s (c = 0). All pairs at once, by the 2x2 normal equations of the centred hinges.
+    """
+    hinge = np.maximum(spool[:, None] - starts[None, :], 0.0)
+    hinge -= hinge.mean(axis=0)
+    gram, along = hinge.T @ hinge, y @ hinge
+    first, knot = np.triu_indices(starts.size, 1)
+    s11, s12, s22 = gram[first, first], gram[first, knot], gram[knot, knot]
+    determinant = s11 * s22 - s12**2
+    # Two hinges that coincide at every level (no level between s and k) add nothing.
+    solvable = determinant > 1e-12 * s11 * s22
+    safe = np.where(solvable, determinant, 1.0)
+    slope = (s22 * along[first] - s12 * along[knot]) / safe
+    bend = (s11 * along[knot] - s12 * along[first]) / safe
+    explained = slope * along[first] + bend * along[knot]
+    allowed = solvable & (slope * (slope + bend) >= 0.0)
+    sums = np.full(starts.size, np.inf)
+    np.minimum.at(sums, first[allowed], np.maximum(y @ y - explained[allowed], 0.0))
+    return np.minimum(sums, _hinge_sums(spool, y, starts))
+
+
+def _second_knot_significant(hinge_sse: float, bent_sse: float, y: np.ndarray) -> bool:
+    """Whether a second knot (2 more parameters) fits ``y`` past chance: the F test at 95 %."""
+    gain = hinge_sse - bent_sse
+    # An exact hinge leaves both sums at rounding's size: nothing for a second knot to explain.
+    if gain <= 1e-9 * float(y @ y):
+        return False
+    critical = scipy.stats.f.ppf(0.95, 2, y.size - 6)
+    return bool(gain / 2.0 > critical * bent_sse / (y.size - 6))

@@ -146,7 +146,8 @@ class StaticCurves:
     cannot tell apart (the 95 % profile interval, widened to the gaps of levels about its starts),
     ``profile_intervals`` (inputs, 2) the profile intervals alone; ``play_half_widths``
     (inputs,) the half-width of each valve's play band (its section's, where one found its
-    start); ``from_sections`` (inputs,) whether a section found it (``section_start``);
+    start); ``from_sections`` (inputs,) whether a section found it (``section_start``), and
+    ``bent_sections`` (inputs,) whether that section's hinge was bent once above the start;
     ``section_levels`` (M,) which of the settled levels were sections, left out of the curves'
     fit; ``settled_currents`` per input, the currents of the
     levels that showed its curve alone (it open, the others shut); ``residual_rms`` the root of
@@ -167,6 +168,7 @@ class StaticCurves:
     settled_currents: tuple[np.ndarray, ...]
     profile_intervals: np.ndarray
     unread_section_levels: int = 0
+    bent_sections: tuple[bool, ...] = ()
 
     def curve(self, index: int, currents) -> np.ndarray:
         """The steady output change of input ``index`` from shut, at ``currents``."""
@@ -360,6 +362,7 @@ def fit_static_curves(
         ),
         play_half_widths=tuple(float(span[i] * plays[i]) for i in range(inputs)),
         from_sections=tuple(i in sections for i in range(inputs)),
+        bent_sections=tuple(i in sections and sections[i].bent for i in range(inputs)),
         section_levels=in_sections,
         unread_section_levels=unread,
         settled_currents=tuple(u[(u[:, i] > 0.0) & others_shut(u, i), i] for i in range(inputs)),

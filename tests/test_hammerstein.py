@@ -7,6 +7,7 @@ benchmarks/hammerstein.py measures.
 """
 
 import dataclasses
+import types
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ import scipy.signal
 from maskless.analysis.identification.fit_metrics import fit_percent
 from maskless.analysis.identification.hammerstein import (
     LEVELS_SCATTER_SHARE,
+    _bent_section_warnings,
     _settle_samples,
     _settling_pole,
     estimate_hammerstein,
@@ -212,6 +214,19 @@ def test_the_summary_names_where_each_start_came_from(planted_fit):
         starts_from_bent_sections=(False, True),
     ).summary()["valves"]["outlet"]["starting_current_from"]
     assert bent.startswith("a section") and bent.endswith("its hinge bent once above the start")
+
+
+def test_a_section_read_two_ways_that_do_not_meet_is_warned():
+    curves = types.SimpleNamespace(
+        starts=np.array([0.06, 0.0604]),
+        straight_section_starts=(None, 0.0765),
+        sections_read_apart=(False, True),
+    )
+    (warning,) = _bent_section_warnings(curves, "A")
+    assert warning.startswith("outlet: its section reads the start at 0.0604 A")
+    assert "at 0.0765 A straight" in warning and "cannot tell" in warning
+    meeting = types.SimpleNamespace(**{**vars(curves), "sections_read_apart": (False, False)})
+    assert _bent_section_warnings(meeting, "A") == ()
 
 
 def test_a_search_stopped_early_is_named_not_raised():

@@ -7,7 +7,6 @@ start, a slope, a play half-width) seen through that operator with noise.
 import numpy as np
 import pytest
 
-from maskless.analysis.identification import section_start as section_module
 from maskless.analysis.identification.hammerstein import _section_warnings
 from maskless.analysis.identification.section_start import (
     MIN_BENT_SECTION_LEVELS,
@@ -126,17 +125,14 @@ def _steep_then_flat_section(start=0.40):
     return holds, level_holds, spools, outputs
 
 
-def test_a_section_steep_at_its_start_read_below_a_flat_level_owns_to_the_gap_above_it(
-    monkeypatch,
-):
+def test_a_section_steep_at_its_start_read_below_a_flat_level_owns_to_the_gap_above_it():
     # A section's output falls steeply from its start and then flattens, as the outlet's with
     # the inlet open does: a straight hinge through the lower levels meets the flat below the
     # highest level that is still flat (patient 11 of the standard population with its advised
     # holds, stop 45 of issue 14: start read 54 mA, a flat level at 55.5 mA, the plant's 60
     # mA). The profile's starts up to that level lie in the gap about the best start; the
-    # profile's highest lies in the gap above it, which holds the planted start. The straight
-    # hinge alone: with fewer levels than a bent one needs.
-    monkeypatch.setattr(section_module, "MIN_BENT_SECTION_LEVELS", 9)
+    # profile's highest lies in the gap above it, which holds the planted start. Without the
+    # levels' noise to test a lack of fit against, the hinge is straight.
     start = 0.40
     holds, level_holds, spools, outputs = _steep_then_flat_section(start)
     found = section_start(holds, level_holds, outputs, np.ones(outputs.size, dtype=bool), 0.95)
@@ -146,12 +142,14 @@ def test_a_section_steep_at_its_start_read_below_a_flat_level_owns_to_the_gap_ab
 
 
 def test_the_same_curved_section_read_with_a_bent_hinge_places_its_start():
-    # With enough levels for a second knot (8), the bend above the start is fitted, not forced
-    # through the start: the planted start within two grid steps, inside the interval.
+    # With enough levels for a second knot (8) and the record's level noise (the planted 1e-3),
+    # the bend above the start is fitted, not forced through the start: the planted start
+    # within two grid steps, inside the interval.
     start = 0.40
     holds, level_holds, _, outputs = _steep_then_flat_section(start)
     assert outputs.size >= MIN_BENT_SECTION_LEVELS
-    found = section_start(holds, level_holds, outputs, np.ones(outputs.size, dtype=bool), 0.95)
+    mask = np.ones(outputs.size, dtype=bool)
+    found = section_start(holds, level_holds, outputs, mask, 0.95, (1e-6, 100))
     assert found.bent and found.start == pytest.approx(start, abs=0.0051)
     assert found.interval[0] <= start <= found.interval[1]
 
@@ -173,35 +171,54 @@ def _stop_knee_section(seed, levels=16, noise=0.005, start=0.35, knee=0.50):
     return holds, level_holds, outputs + noise * rng.standard_normal(levels)
 
 
-def test_a_section_bent_where_the_head_leaves_a_stop_is_read_from_its_first_knot(monkeypatch):
-    start, seeds = 0.35, range(10)
+def test_a_section_bent_where_the_head_leaves_a_stop_is_read_from_its_first_knot():
+    start, noise = 0.35, 0.005
     bent, straight = [], []
-    for seed in seeds:
-        holds, level_holds, outputs = _stop_knee_section(seed, start=start)
+    for seed in range(10):
+        holds, level_holds, outputs = _stop_knee_section(seed, noise=noise, start=start)
         mask = np.ones(outputs.size, dtype=bool)
-        bent.append(section_start(holds, level_holds, outputs, mask, 0.95))
-        with monkeypatch.context() as patched:
-            patched.setattr(section_module, "MIN_BENT_SECTION_LEVELS", outputs.size + 1)
-            straight.append(section_start(holds, level_holds, outputs, mask, 0.95))
+        bent.append(section_start(holds, level_holds, outputs, mask, 0.95, (noise**2, 100)))
+        straight.append(section_start(holds, level_holds, outputs, mask, 0.95))
     # One hinge meets the flat near the knee and its interval excludes the start, every time.
     assert all(abs(f.start - 0.50) < 0.03 for f in straight)
     assert not any(f.interval[0] <= start <= f.interval[1] for f in straight)
-    # The bent hinge: the F test passes on most, and those read the start.
+    # Bent where both tests pass (most), and those read the start.
     read = [f for f in bent if f.bent]
     assert len(read) >= 8
     assert all(abs(f.start - start) < 0.04 for f in read)
     assert all(f.interval[0] <= start <= f.interval[1] for f in read)
 
 
-def test_a_straight_hinge_is_seldom_read_as_bent():
-    # The F test at 95 %, with the knot's place searched too, passes a little more often than
-    # 5 % by chance on straight hinges (4 of 200 records of 12 levels, 17 of 200 of 24, stop
-    # 47 of issue 14); where it fails, the plain hinge stands unchanged.
+def test_a_straight_hinge_is_not_read_as_bent():
+    # Its scatter is the record's noise: no lack of fit (0 of 200 records of 8, 12, 17 and 24
+    # levels each, stop 47 of issue 14; the second knot's F test alone passed on 2 %-8.5 %).
     bent = [
-        section_start(*_hinge_record(seed), np.ones(12, dtype=bool), 0.95).bent
+        section_start(*_hinge_record(seed), np.ones(12, dtype=bool), 0.95, (0.01**2, 100)).bent
         for seed in range(40)
     ]
-    assert sum(bent) <= 4
+    assert not any(bent)
+
+
+def test_a_section_whose_one_hinge_fits_within_the_records_noise_is_not_bent():
+    # The flat levels drift low towards the start, as levels refilled from outside the section
+    # that had not settled do (seed 22 of benchmarks/hammerstein.py, stop 47 of issue 14). On
+    # a record whose other levels are quiet that is a lack of fit, and a second knot reads the
+    # drift as a slope and the start far low, its interval stretched over the straight
+    # reading's; where the other levels scatter as far as the drift, the one hinge stands.
+    quiet, noisy = [], []
+    for seed in range(20):
+        holds, level_holds, outputs = _hinge_record(seed, levels=14, noise=0.002)
+        spools = play_operator(holds, HALF_WIDTH)[level_holds]
+        outputs = outputs - np.where(spools < START, 0.3 * np.maximum(spools - START + 0.1, 0), 0)
+        mask = np.ones(outputs.size, dtype=bool)
+        quiet.append(section_start(holds, level_holds, outputs, mask, 0.95, (0.002**2, 100)))
+        noisy.append(section_start(holds, level_holds, outputs, mask, 0.95, (0.03**2, 100)))
+    misread = [f for f in quiet if f.bent]
+    assert len(misread) >= 5 and all(f.start < START - 0.05 for f in misread)
+    assert all(f.interval[0] <= START <= f.interval[1] for f in misread)
+    assert all(abs(f.straight_start - START) < 0.02 for f in misread)
+    assert not any(f.bent for f in noisy)
+    assert all(f.interval[0] <= START <= f.interval[1] for f in noisy)
 
 
 def test_a_section_is_a_valve_at_many_currents_with_the_other_held_open_at_one():
@@ -221,11 +238,12 @@ def test_a_section_is_a_valve_at_many_currents_with_the_other_held_open_at_one()
     assert find_sections(currents[np.r_[0:60, 61 : currents.shape[0]]]) == {}
 
 
-def _two_valve_levels(seed, section, alone_levels=21):
+def _two_valve_levels(seed, section, alone_levels=21, knee=None, noise=0.01):
     """Split-range levels of a gentle outlet, with or without a section on the inlet held open.
 
     Each valve alone at ``alone_levels`` levels; the section's levels are approached
-    alternately from the outlet shut and fully open.
+    alternately from the outlet shut and fully open. With ``knee``, the section falls 0.3 as
+    steeply from the start to there (a head leaving its travel stop). ``noise``: the levels'.
     """
     rng = np.random.default_rng(seed)
     alone = np.linspace(0.0, 1.0, alone_levels)
@@ -248,8 +266,29 @@ def _two_valve_levels(seed, section, alone_levels=21):
     outputs = 2.0 * currents[:, 0] ** 2 + np.where(gentle, -0.05, SLOPE) * np.maximum(
         spool - START, 0.0
     )
-    noisy = outputs + 0.01 * rng.standard_normal(outputs.size)
+    if knee is not None:
+        short_of_steep = np.maximum(spool - START, 0.0) - np.maximum(spool - knee, 0.0)
+        outputs -= np.where(gentle, 0.0, 0.7 * SLOPE * short_of_steep)
+    noisy = outputs + noise * rng.standard_normal(outputs.size)
     return SettledLevels(currents, noisy, np.ones(noisy.size), holds, level_holds)
+
+
+def test_a_sections_knee_above_its_start_is_read_bent_with_the_noise_the_curves_leave():
+    # The curves' fit leaves the levels' noise (0.002); the one hinge through the section
+    # misfits it and a second knot fits past chance: read bent, the start where the slope first
+    # leaves zero, the interval over both readings.
+    for seed in range(4):
+        levels = _two_valve_levels(seed, True, knee=START + 0.06, noise=0.002)
+        curves = fit_static_curves(levels, 0.6, 1.2, read_sections=True)
+        straight = curves.straight_section_starts[1]
+        assert curves.bent_sections == (False, True) and abs(curves.starts[1] - START) < 0.01
+        assert straight - START > 0.02  # the one hinge meets the flat near the knee
+        low, high = curves.start_intervals[1]
+        assert low <= START <= high and low <= straight <= high
+    # Without the knee the hinge stays straight.
+    straight_levels = _two_valve_levels(0, True, noise=0.002)
+    plain = fit_static_curves(straight_levels, 0.6, 1.2, read_sections=True)
+    assert plain.bent_sections == (False, False) and plain.straight_section_starts == (None, None)
 
 
 def test_a_section_places_a_gentle_valves_start_that_its_own_levels_cannot():
@@ -352,9 +391,15 @@ def test_a_section_level_counts_only_where_the_sections_own_hold_came_before():
 
 
 def test_levels_refilled_from_outside_the_section_place_its_start_low_unless_left_out():
+    bent = 0
     for seed in range(4):
         levels, _ = _section_with_refills(seed)
         every = fit_static_curves(levels, 0.6, 1.2, read_sections=True)
+        # Their shortfall can bend the hinge (a second knot reads it as a slope), the start then
+        # far low; its interval covers the straight reading's and the planted start.
+        if every.bent_sections[1]:
+            bent += 1
+            assert every.start_intervals[1][0] <= START <= every.start_intervals[1][1]
         within = fit_static_curves(levels, 0.6, 1.2, read_sections=True, sections_from_within=True)
         assert within.from_sections == (False, True)
         assert abs(within.starts[1] - START) < 0.01
@@ -362,6 +407,7 @@ def test_levels_refilled_from_outside_the_section_place_its_start_low_unless_lef
         assert every.starts[1] - START < -0.03
         # Left out of the section, they stay out of the curves' fit too.
         np.testing.assert_array_equal(within.section_levels, every.section_levels)
+    assert bent >= 1
 
 
 def test_a_section_with_too_few_levels_approached_from_within_is_read_whole():

@@ -363,6 +363,7 @@ def estimate_hammerstein(
         settled_currents=tuple(tuple(c.tolist()) for c in curves.settled_currents),
         levels_scatter=curves.residual_rms,
         warnings=_section_warnings(curves)
+        + _bent_section_warnings(curves, input_unit)
         + _extrapolation_warnings(curves, u, settle, input_unit)
         + _scatter_warnings(curves, output_unit)
         + (_thin_levels_warnings(settled_share, slowest, advised) if advised else ()),
@@ -378,6 +379,26 @@ def _section_warnings(curves) -> tuple[str, ...]:
         "section) were fitted as a sum of the valves' curves, which does not describe them: too "
         "few other levels settled to read the section apart. The starting currents and curves "
         "may be far off; a longer record, or longer holds, gives the fit the levels it needs.",
+    )
+
+
+def _bent_section_warnings(curves, input_unit: str) -> tuple[str, ...]:
+    """A section read bent whose straight reading's interval does not meet the bent one's.
+
+    A second knot fits both a travel stop's knee above the start (still patient 34 of the
+    standard population) and levels refilled from outside the section that had not settled
+    (``section_start``): the start read is the bent hinge's, its interval covers both.
+    """
+    return tuple(
+        f"{_input_name(i)}: its section reads the start at {curves.starts[i]:.4g} {input_unit} "
+        f"with its hinge bent once above it, and at {straight:.4g} {input_unit} straight; "
+        "the two do not agree within their intervals, so the record cannot tell a travel "
+        "stop's knee from levels refilled from outside the section that had not settled. "
+        "The interval covers both; longer holds settle the refilled levels."
+        for i, (straight, apart) in enumerate(
+            zip(curves.straight_section_starts, curves.sections_read_apart, strict=True)
+        )
+        if apart
     )
 
 

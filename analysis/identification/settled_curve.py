@@ -146,8 +146,10 @@ class StaticCurves:
     cannot tell apart (the 95 % profile interval, widened to the gaps of levels about its starts),
     ``profile_intervals`` (inputs, 2) the profile intervals alone; ``play_half_widths``
     (inputs,) the half-width of each valve's play band (its section's, where one found its
-    start); ``from_sections`` (inputs,) whether a section found it (``section_start``), and
-    ``bent_sections`` (inputs,) whether that section's hinge was bent once above the start;
+    start); ``from_sections`` (inputs,) whether a section found it (``section_start``),
+    ``bent_sections`` (inputs,) whether that section's hinge was bent once above the start,
+    ``straight_section_starts`` (inputs,) there the plain hinge's start (else None) and
+    ``sections_read_apart`` (inputs,) whether the two readings' profile intervals do not meet;
     ``section_levels`` (M,) which of the settled levels were sections, left out of the curves'
     fit; ``settled_currents`` per input, the currents of the
     levels that showed its curve alone (it open, the others shut); ``residual_rms`` the root of
@@ -169,6 +171,8 @@ class StaticCurves:
     profile_intervals: np.ndarray
     unread_section_levels: int = 0
     bent_sections: tuple[bool, ...] = ()
+    straight_section_starts: tuple[float | None, ...] = ()
+    sections_read_apart: tuple[bool, ...] = ()
 
     def curve(self, index: int, currents) -> np.ndarray:
         """The steady output change of input ``index`` from shut, at ``currents``."""
@@ -285,14 +289,62 @@ def fit_static_curves(
     # Every hold's currents as fractions of each input's range: the play runs over them all.
     holds, level_holds = levels.holds_in_order()
     fractions = (holds - low) / span
-    sections, in_sections, unread = {}, np.zeros(y.size, dtype=bool), 0
+    read = _SectionsRead({}, np.zeros(y.size, dtype=bool), 0)
     if read_sections:
-        sections, in_sections, unread = _section_starts(
-            levels, fractions, level_holds, max_start, sections_from_within
+        read = _section_starts(levels, fractions, level_holds, max_start, sections_from_within)
+    curves = _curves_beside(levels, fractions, (low, span), (max_start, max_saturation), read)
+    noise = _level_noise(curves) if read.starts else None
+    if noise is not None:
+        # Read again with the noise the curves left: a section that one hinge does not fit
+        # within it may be bent (``section_start``); the curves then fitted beside it.
+        bent = _section_starts(
+            levels, fractions, level_holds, max_start, sections_from_within, noise
         )
-    u, y = u[~in_sections], y[~in_sections]
-    level_holds = level_holds[~in_sections]
-    samples = levels.samples[~in_sections]
+        if any(found.bent for found in bent.starts.values()):
+            curves = _curves_beside(
+                levels, fractions, (low, span), (max_start, max_saturation), bent
+            )
+    return curves
+
+
+@dataclass(frozen=True)
+class _SectionsRead:
+    """``_section_starts``'s reading of a record's sections.
+
+    ``starts`` {valve: its ``SectionStart``}, ``in_sections`` (M,) the levels in any section,
+    ``unread`` the sections' levels left in the curves' fit (too few others).
+    """
+
+    starts: dict
+    in_sections: np.ndarray
+    unread: int
+
+
+def _level_noise(curves: StaticCurves) -> tuple[float, int] | None:
+    """(variance, degrees of freedom) of a level's noise about the curves; None without any.
+
+    Weighted by the samples each level averages, as the curves' fit is: the variance of a level
+    of the mean length.
+    """
+    fitted = int(np.sum(~curves.section_levels))
+    dof = fitted - parameter_count(curves.starts.size)
+    if dof < 1:
+        return None
+    return curves.residual_rms**2 * fitted / dof, dof
+
+
+def _curves_beside(levels: SettledLevels, fractions, scale, limits, read: _SectionsRead):
+    """The ``StaticCurves`` of the levels outside ``read``'s sections, its starts fixed.
+
+    ``scale`` (low, span) maps fractions of each input's range back to its currents, ``limits``
+    are (max_start, max_saturation).
+    """
+    (low, span), (max_start, max_saturation) = scale, limits
+    sections, outside = read.starts, ~read.in_sections
+    inputs = levels.currents.shape[1]
+    u, y = levels.currents[outside], levels.outputs[outside]
+    level_holds = levels.holds_in_order()[1][outside]
+    samples = levels.samples[outside]
     target = _Target(y, samples / samples.mean())
 
     @functools.cache
@@ -305,7 +357,6 @@ def fit_static_curves(
         return play_operator(fractions[:, i], half_width)[level_holds]
 
     fixed = [sections[i].start if i in sections else None for i in range(inputs)]
-    limits = (max_start, max_saturation)
     plays = [sections[i].play_half_width if i in sections else 0.0 for i in range(inputs)]
     # Start each valve linear over its whole range; the sweeps move its ends.
     plays, ends, signs, x = _sweeps(
@@ -363,14 +414,25 @@ def fit_static_curves(
         play_half_widths=tuple(float(span[i] * plays[i]) for i in range(inputs)),
         from_sections=tuple(i in sections for i in range(inputs)),
         bent_sections=tuple(i in sections and sections[i].bent for i in range(inputs)),
-        section_levels=in_sections,
-        unread_section_levels=unread,
+        straight_section_starts=tuple(
+            low[i] + span[i] * sections[i].straight_start
+            if i in sections and sections[i].bent
+            else None
+            for i in range(inputs)
+        ),
+        sections_read_apart=tuple(
+            i in sections and sections[i].readings_apart for i in range(inputs)
+        ),
+        section_levels=read.in_sections,
+        unread_section_levels=read.unread,
         settled_currents=tuple(u[(u[:, i] > 0.0) & others_shut(u, i), i] for i in range(inputs)),
     )
 
 
-def _section_starts(levels: SettledLevels, fractions, level_holds, max_start, from_within):
-    """({valve: its ``SectionStart``}, (M,) the levels in any section, sections' levels unread).
+def _section_starts(
+    levels: SettledLevels, fractions, level_holds, max_start, from_within, level_noise=None
+):
+    """The sections' ``_SectionsRead``: their starts, their levels, and those left unread.
 
     ``fractions`` (H, inputs) are every hold's currents as fractions of each input's range and
     ``level_holds`` (M,) the hold each level ends. None found where the levels outside the
@@ -380,21 +442,38 @@ def _section_starts(levels: SettledLevels, fractions, level_holds, max_start, fr
     curves, one short of 18: the section stayed in the fit, which no sum of curves describes,
     and the outlet's curve came out 225 % of full scale off (the benchmark's plant with the inlet
     starting at 80 mA, seed 7 of a design since reverted); read, its starts were 2.2 and 0.3 mA
-    off.
+    off. ``level_noise`` goes to ``section_start``: with it, a section may be read bent.
     """
     masks = find_sections(levels.currents)
     in_sections = np.zeros(levels.outputs.size, dtype=bool)
     for mask in masks.values():
         in_sections |= mask
     if not masks or not enough_levels(levels.currents[~in_sections], fixed_starts=len(masks)):
-        return {}, np.zeros(levels.outputs.size, dtype=bool), int(in_sections.sum())
+        return _SectionsRead({}, np.zeros(levels.outputs.size, dtype=bool), int(in_sections.sum()))
     if from_within and levels.hold_first_samples is not None:
         masks = {valve: _within_or_all(levels, mask, valve) for valve, mask in masks.items()}
     found = {
-        valve: section_start(fractions[:, valve], level_holds, levels.outputs, mask, max_start)
+        valve: section_start(
+            fractions[:, valve],
+            level_holds,
+            levels.outputs,
+            mask,
+            max_start,
+            level_noise,
+            _refilled(levels, mask, valve),
+        )
         for valve, mask in masks.items()
     }
-    return found, in_sections, 0
+    return _SectionsRead(found, in_sections, 0)
+
+
+def _refilled(levels: SettledLevels, mask, valve) -> np.ndarray | None:
+    """(M,) ``mask``'s levels approached from outside it; None where the holds are not known."""
+    if levels.hold_first_samples is None:
+        return None
+    return mask & ~approached_within(
+        levels.hold_currents, levels.hold_first_samples, levels.level_holds, mask, valve
+    )
 
 
 def _within_or_all(levels: SettledLevels, mask, valve) -> np.ndarray:

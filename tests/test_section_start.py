@@ -191,7 +191,7 @@ def test_a_section_bent_where_the_head_leaves_a_stop_is_read_from_its_first_knot
 
 def test_a_straight_hinge_is_not_read_as_bent():
     # Its scatter is the record's noise: no lack of fit (0 of 200 records of 8, 12, 17 and 24
-    # levels each, stop 47 of issue 14; the second knot's F test alone passed on 2 %-8.5 %).
+    # levels each, stop 47 of issue 14; the second knot's F test alone passed on 1 %-8.5 %).
     bent = [
         section_start(*_hinge_record(seed), np.ones(12, dtype=bool), 0.95, (0.01**2, 100)).bent
         for seed in range(40)

@@ -40,18 +40,28 @@ reads each valve's start from its section alone, here:
   (67.1-81.1) on the plant's noise-free lift at its spools, the plant's 60 mA, unwarned. So a
   second knot k above s is fitted too, y = a + b max(0, p - s) + c max(0, p - k), b and b + c of
   one sign (an opening valve only adds flow: a stop changes the lift's slope, never its
-  direction). The start and its interval are read from it where two tests pass, both at 95 %
-  and with n >= ``MIN_BENT_SECTION_LEVELS`` levels; elsewhere the one hinge stands, bit for bit.
-  First, the one hinge leaves more scatter than the record's noise: its residual variance over
-  the level noise the curves' fit leaves on the other levels passes F(n - 4, their degrees of
-  freedom), a lack-of-fit test (``settled_curve`` reads the sections again with that noise).
-  Then the second knot lowers the sum of squares by more than F(2, n - 6) residual variances per
-  added parameter (c and k: nested least squares). The second knot alone also bends to levels
-  refilled from outside the section that had not settled (below): on the 60 mA plant (seed 22
-  of ``benchmarks/hammerstein.py``) three such levels read 0.09-0.20 mm low, the second knot
-  passed its test (p = 0.012) and read the outlet's start 39 mA low, with an interval of 0-36.5
-  mA, where the one hinge left 0.105 mm of scatter against the curves' 0.085 mm, no lack of
-  fit. Patient 34's outlet, 0.199 mm against 0.086 mm, reads 60.4 mA (47.1-65.0);
+  direction). The start is read from it where three tests pass, at 95 % and with n >=
+  ``MIN_BENT_SECTION_LEVELS`` levels; elsewhere the one hinge stands, bit for bit:
+  1. the one hinge leaves more scatter than the record's noise: its residual variance over the
+     level noise the curves' fit leaves on the other levels passes F(n - 4, their degrees of
+     freedom), a lack-of-fit test (``settled_curve`` reads the sections again with that noise);
+  2. the second knot lowers the sum of squares by more than F(2, n - 6) residual variances per
+     added parameter (c and k: nested least squares);
+  3. the bent hinge's first slope, its knots held, shows on the levels approached from within
+     the section alone (``approached_within``): its t statistic past t(0.975), the variance
+     the larger of theirs and the record's noise.
+  Levels refilled from outside the section that had not settled (below) read low where the
+  design puts them, just under the start, and bend a hinge as a knee does. On the 60 mA plant
+  (seed 22 of ``benchmarks/hammerstein.py``, stop 47 of issue 14) three such levels read
+  0.09-0.20 mm low: tests 1 and 2 alone passed (0.105 mm of scatter against the curves' 0.061
+  mm; p = 0.012) and read the outlet's start 39 mA low, with an interval of 0-36.5 mA,
+  unwarned. So in tests 1 and 2 the refilled levels have a level of their own (one parameter
+  more): seed 22's scatter is then 0.081 mm, no lack of fit. Where the refilled levels are not
+  all short, that offset does not absorb them (a planted section, ``tests/test_section_start``)
+  and test 3 stops some. Still, the three cannot always tell a knee from such levels, so a
+  bent reading's intervals cover the straight one's too (``SectionStart``), and a fit whose
+  two readings' profile intervals do not meet warns. Patient 34's outlet reads 60.4 mA, its
+  interval 47.1-80.2 mA, warned;
 - a level whose hold followed one with the other valves elsewhere (shut, or at another current)
   began far from the section and may not have settled: the pneumatic plant's head, filled from
   207.6 to 225.7 mm with the inlet open, was still 0.02 mm short of its level a minute later (a

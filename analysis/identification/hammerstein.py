@@ -124,7 +124,8 @@ class HammersteinFit:
             its levels with the other valve held open) gave its starting current; empty as
             ``start_intervals``.
         starts_from_bent_sections: per valve, whether that section's hinge was bent once above
-            the start (a travel stop's knee, ``section_start``); empty as ``start_intervals``.
+            the start (``section_start``: a travel stop's knee, or levels that had not
+            settled); empty as ``start_intervals``.
         settled_currents: per valve, the currents of the settled holds that showed its curve
             alone (the others shut), in the record's order; empty as ``start_intervals``.
         levels_scatter: the settled levels' RMS residual about the static curves

@@ -19,9 +19,9 @@ plant's; and the machine. ``--keep DIR`` keeps each patient's recordings and mod
 
 With ``--follow-advice``, a patient whose Hammerstein fit advised longer holds (it fell back to
 its joint search, or its settled levels were few) runs the experiment `maskless workflow` then
-prints
-(``workflow.advised_excitation``: those holds, twice the duration) and is identified again: its
-starts, intervals and warnings under ``advised``. ``--only`` picks the patients by number.
+prints (``workflow.advised_excitation``: those holds, twice the duration) and is identified
+again: its starts, intervals and warnings under ``advised``. ``--only`` picks the patients by
+number.
 """
 
 import argparse

@@ -107,10 +107,9 @@ class SectionStart:
             95 % rise, or in the gap between its levels about the start.
         play_half_width: the play band's half-width at the best fit.
         profile_interval: (lowest, highest) start within the profile's 95 % rise alone.
-        bent: whether the start was read from the hinge bent once above it (module
-            docstring), not from the plain hinge. Both intervals then cover what either
-            reading's does.
-        straight_start: where bent, the plain hinge's start; else None.
+        straight_start: where the start was read from the hinge bent once above it (module
+            docstring), the plain hinge's start; else None. Both intervals then cover what
+            either reading's does.
         readings_apart: where bent, whether the two readings' profile intervals do not meet.
     """
 
@@ -118,9 +117,13 @@ class SectionStart:
     interval: tuple[float, float]
     play_half_width: float
     profile_interval: tuple[float, float]
-    bent: bool = False
     straight_start: float | None = None
     readings_apart: bool = False
+
+    @property
+    def bent(self) -> bool:
+        """Whether the start was read from the bent hinge, not the plain one."""
+        return self.straight_start is not None
 
 
 def play_operator(currents: np.ndarray, half_width: float) -> np.ndarray:
@@ -243,7 +246,6 @@ def section_start(
         interval=_spanning(read.interval, straight.interval),
         play_half_width=read.play_half_width,
         profile_interval=_spanning(read.profile_interval, straight.profile_interval),
-        bent=True,
         straight_start=straight.start,
         readings_apart=(
             read.profile_interval[1] < straight.profile_interval[0]

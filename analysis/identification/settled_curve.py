@@ -147,8 +147,8 @@ class StaticCurves:
     ``profile_intervals`` (inputs, 2) the profile intervals alone; ``play_half_widths``
     (inputs,) the half-width of each valve's play band (its section's, where one found its
     start); ``from_sections`` (inputs,) whether a section found it (``section_start``),
-    ``bent_sections`` (inputs,) whether that section's hinge was bent once above the start,
-    ``straight_section_starts`` (inputs,) there the plain hinge's start (else None) and
+    ``straight_section_starts`` (inputs,) where that section's hinge was bent once above the
+    start, the plain hinge's start (else None; ``bent_sections`` says which) and
     ``sections_read_apart`` (inputs,) whether the two readings' profile intervals do not meet;
     ``section_levels`` (M,) which of the settled levels were sections, left out of the curves'
     fit; ``settled_currents`` per input, the currents of the
@@ -170,9 +170,13 @@ class StaticCurves:
     settled_currents: tuple[np.ndarray, ...]
     profile_intervals: np.ndarray
     unread_section_levels: int = 0
-    bent_sections: tuple[bool, ...] = ()
     straight_section_starts: tuple[float | None, ...] = ()
     sections_read_apart: tuple[bool, ...] = ()
+
+    @property
+    def bent_sections(self) -> tuple[bool, ...]:
+        """(inputs,) whether each valve's start came from a section's bent hinge."""
+        return tuple(start is not None for start in self.straight_section_starts)
 
     def curve(self, index: int, currents) -> np.ndarray:
         """The steady output change of input ``index`` from shut, at ``currents``."""
@@ -413,7 +417,6 @@ def _curves_beside(levels: SettledLevels, fractions, scale, limits, read: _Secti
         ),
         play_half_widths=tuple(float(span[i] * plays[i]) for i in range(inputs)),
         from_sections=tuple(i in sections for i in range(inputs)),
-        bent_sections=tuple(i in sections and sections[i].bent for i in range(inputs)),
         straight_section_starts=tuple(
             low[i] + span[i] * sections[i].straight_start
             if i in sections and sections[i].bent
@@ -460,7 +463,8 @@ def _section_starts(
             mask,
             max_start,
             level_noise,
-            _refilled(levels, mask, valve),
+            # Only a reading with the levels' noise can bend a hinge and ask which were refilled.
+            None if level_noise is None else _refilled(levels, mask, valve),
         )
         for valve, mask in masks.items()
     }

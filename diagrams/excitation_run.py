@@ -30,11 +30,13 @@ from maskless.diagrams.excitation_design import (
     ExcitationRequest,
     plan_excitation,
 )
+from maskless.diagrams.fit_split import parts_of_share
 from maskless.diagrams.output_folder import RunFolder
 from maskless.diagrams.run_summary import estimation_start_s
 from maskless.diagrams.scenario import PneumaticPlant, Scenario, kind_name
 from maskless.diagrams.simulation import RUN_FILES, SimulationRun, simulate_loop
 from maskless.errors import ConfigError
+from maskless.recording import FIT_SPLIT_METADATA
 from maskless.systems.control.excitation import (
     ExcitationSignal,
     add_excitation_source,
@@ -144,6 +146,9 @@ def excite_to_files(
     With rendered cameras, the recording holds their images and OUT/frames.png shows each
     camera's first and last one. Returns the summary with the files written (``files``).
 
+    A designed experiment's recording says the part of it to fit (``recording.FIT_SPLIT_METADATA``,
+    read by `maskless identify --method hammerstein`).
+
     The request is checked, then OUT claimed as ``simulate_to_files`` claims it (refused when in
     use or, unless ``overwrite``, holding a run), both before anything is simulated; the files
     are written under temporary names and renamed when all are written.
@@ -154,7 +159,9 @@ def excite_to_files(
     plan = plan_excitation(scenario, request)
     with RunFolder(out, RUN_FILES, overwrite=overwrite) as folder:
         excited = _run_plan(plan)
-        excited.run.write_mcap(folder.temporary("run.mcap"))
+        design = excited.summary.get("design")
+        metadata = {FIT_SPLIT_METADATA: parts_of_share(design["fit_share"])} if design else None
+        excited.run.write_mcap(folder.temporary("run.mcap"), metadata)
         excited.run.plot(folder.temporary("run.png"), show_tolerance=False)
         files = {"recording": "run.mcap", "plot": "run.png"}
         if excited.run.frames:
@@ -302,9 +309,9 @@ def format_excitation_summary(summary: dict) -> str:
         rounds = len(summary["design"]["round_start_intervals_ma"])
         lines.append(
             f"  designed {first_s:g}-{end_s:g} s in {rounds} "
-            f"rounds from the record before; fit the first {100 * share:g} % "
-            f"(maskless identify --method hammerstein --estimation 0:{share:g} --validation "
-            f"{share:g}:1)"
+            f"rounds from the record before; fit the first {100 * share:g} %, as the recording "
+            f"says (maskless identify --method hammerstein fits "
+            f"{parts_of_share(share)['estimation']} unless told otherwise)"
         )
     lines.append("Files:")
     lines += [f"  {name}: {path}" for name, path in summary["files"].items()]

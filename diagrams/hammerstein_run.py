@@ -1,16 +1,15 @@
 """`maskless identify --method hammerstein`: both valves' maps and the dynamics from a recording.
 
-Reads the inlet's and the outlet's currents and the fused head height from a maskless MCAP
-recording (``maskless excite`` driving both valves), fits a Hammerstein model per order on the
-estimation part (``analysis.identification.hammerstein``, read as
-``DESIGNED_RECORD_READING`` says, as the sequential design's rounds read it) and judges it on the
-validation part
-by simulation fit against the linear model of the same order, fitted by the same output-error
-code. Each model is simulated over the whole record from rest at its first currents and judged
-on the validation part (``hammerstein.held_out_simulation``: not from rest at the part's first
-currents, which judges where the split fell). Writes OUT/report.json, one model file per order
-(``model_file.hammerstein_file_contents``, in A and m) and a plot of each valve's static curve and
-the validation simulation.
+Reads the inlet's and the outlet's currents and the fused head height from a maskless MCAP recording
+(``maskless excite`` driving both valves), fits a Hammerstein model per order on the estimation part
+(``analysis.identification.hammerstein``, read as ``DESIGNED_RECORD_READING`` says, as the
+sequential design's rounds read it) and judges it on the validation part (each, unless given, as a
+designed recording says: ``fit_split``) by simulation fit against the linear model of the same
+order, fitted by the same output-error code. Each model is simulated over the whole record from rest
+at its first currents and judged on the validation part (``hammerstein.held_out_simulation``: not
+from rest at the part's first currents, which judges where the split fell). Writes OUT/report.json,
+one model file per order (``model_file.hammerstein_file_contents``, in A and m) and a plot of each
+valve's static curve and the validation simulation.
 """
 
 import json
@@ -32,13 +31,14 @@ from maskless.analysis.identification.model_file import (
 )
 from maskless.analysis.identification.records import (
     VALVE_CURRENTS_FIELDS,
-    parse_range,
     read_aligned_mcap,
 )
 from maskless.analysis.identification.report import EXPLAINS_SIM
+from maskless.diagrams.fit_split import fit_split
 from maskless.diagrams.identification_request import DEFAULT_MCAP_OUTPUT
 from maskless.diagrams.output_folder import output_folder
 from maskless.errors import RecordError
+from maskless.recording import FIT_SPLIT_METADATA, read_leading_metadata
 
 # The Hammerstein model must beat the linear one by this many points of validation fit for the
 # verdict to call the valve maps worth their parameters.
@@ -86,8 +86,8 @@ def identify_hammerstein_to_files(
     ts: float,
     orders: list[int],
     out: str | Path,
-    estimation: str = "0:0.7",
-    validation: str = "0.7:1",
+    estimation: str | None = None,
+    validation: str | None = None,
     input_field: str = VALVE_CURRENTS_FIELDS,
     output_recording: Path | None = None,
     output_field: str = DEFAULT_MCAP_OUTPUT,
@@ -95,8 +95,10 @@ def identify_hammerstein_to_files(
 ) -> dict:
     """Fits, judges and writes (see the module docstring); returns the report.
 
-    The record is read as ``read_two_valve_record`` reads it. With ``plots`` False no plot is
-    drawn, and an earlier run's in ``out`` is removed (it would read as this run's).
+    The record is read as ``read_two_valve_record`` reads it. A part not given (None) is the
+    recording's design's, else the default (``fit_split``); the report holds both parts and where
+    each came from, and each model's warnings begin with the split's. With ``plots`` False no
+    plot is drawn, and an earlier run's in ``out`` is removed (it would read as this run's).
 
     Raises:
         RecordError: a recording that cannot be read as two valves and an output, a --ts more
@@ -105,12 +107,14 @@ def identify_hammerstein_to_files(
     u, y, period_s = read_two_valve_record(recording, input_field, output_recording, output_field)
     if abs(period_s - ts) > 0.01 * period_s:
         raise RecordError(f"--ts {ts}: the recording's samples are {period_s:.6g} s apart")
-    estimation_part = parse_range(estimation, y.size, "--estimation")
-    validation_part = parse_range(validation, y.size, "--validation")
+    designed = read_leading_metadata(recording).get(FIT_SPLIT_METADATA)
+    split = fit_split(designed, estimation, validation, y.size)
+    estimation_part, validation_part = split.estimation_part, split.validation_part
     u_est, y_est = u[estimation_part], y[estimation_part]
     u_val, y_val = u[validation_part], y[validation_part]
     out = output_folder(out)
-    report = {"method": "hammerstein", "recording": str(recording), "models": []}
+    report = {"method": "hammerstein", "recording": str(recording), **split.summary()}
+    report["models"] = []
     figures = []
     for order in orders:
         fit = estimate_hammerstein(
@@ -135,8 +139,10 @@ def identify_hammerstein_to_files(
         path = out / f"model_hammerstein_order{order}.yaml"
         model_from_contents(contents, str(path))  # never write a file the loader refuses
         path.write_text(yaml.safe_dump(contents, sort_keys=False))
+        summary = fit.summary(VALVE_NAMES)
+        summary["warnings"] = [*split.warnings, *summary["warnings"]]
         entry = {
-            **fit.summary(VALVE_NAMES),
+            **summary,
             "order": order,
             "validation_simulation_fit_percent": validation_fit,
             "linear_validation_simulation_fit_percent": linear_fit,
@@ -217,7 +223,11 @@ def _plot(path: Path, figures, u_val, y_val, ts: float) -> None:
 
 def format_hammerstein_report(report: dict) -> str:
     """The report as lines a person reads."""
-    lines = [f"maskless identify --method hammerstein: {report['recording']}"]
+    lines = [
+        f"maskless identify --method hammerstein: {report['recording']}",
+        f"  fitted on {report['estimation']} ({report['estimation_from']}), judged on "
+        f"{report['validation']} ({report['validation_from']})",
+    ]
     for model in report["models"]:
         lines.append(
             f"  order {model['order']}: validation simulation fit "

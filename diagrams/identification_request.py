@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from maskless.analysis.identification import METHODS
+from maskless.diagrams.fit_split import DEFAULT_ESTIMATION, DEFAULT_VALIDATION
 from maskless.diagrams.request_labels import LabelledRequest
 from maskless.errors import ConfigError
 from maskless.recording import COMMAND_TOPIC, FUSION_TOPIC
@@ -57,8 +58,8 @@ class IdentificationRequest(LabelledRequest):
     method: str = "pem"
     input_column: str | None = None
     output_column: str | None = None
-    estimation: str = "0:0.6"
-    validation: str = "0.6:1"
+    estimation: str = DEFAULT_ESTIMATION
+    validation: str = DEFAULT_VALIDATION
     detrend: str = "mean"
     k_step: int | None = None
     estimate_initial_state: bool = True

@@ -74,12 +74,15 @@ class SimulationRun:
         """The run's logs as the channels of its MCAP recording."""
         return signal_channels(self.signals, self.closed_loop.sensor_names)
 
-    def write_mcap(self, path: str | Path) -> Path:
-        """Writes the run's recording (topics in ``maskless.recording``) to ``path``."""
+    def write_mcap(self, path: str | Path, metadata: dict | None = None) -> Path:
+        """Writes the run's recording (topics in ``maskless.recording``) to ``path``.
+
+        ``metadata`` (name -> {key: value}, strings) opens the file (``write_recording``).
+        """
         from maskless.recording import write_recording
 
         path = output_file(path)
-        write_recording(path, self.recording_channels(), frames=self.frames)
+        write_recording(path, self.recording_channels(), frames=self.frames, metadata=metadata)
         return path
 
     def first_and_last_frames(self) -> dict[str, list[CameraFrame]]:

@@ -33,6 +33,7 @@ from maskless.analysis.identification.hammerstein import JOINT_SEARCH_SOURCE
 from maskless.analysis.identification.report import EXPLAINS_PART_VERDICT, EXPLAINS_VERDICT
 from maskless.diagrams.excitation_design import HELD_LEVEL_SIGNALS, VALVE_LEVEL_SIGNALS
 from maskless.diagrams.excitation_run import ExcitationRequest, excite_to_files
+from maskless.diagrams.fit_split import parts_of_share
 from maskless.diagrams.hammerstein_run import MAPS_EXPLAIN_VERDICT, identify_hammerstein_to_files
 from maskless.diagrams.identification_run import IdentificationRequest, identify_to_files
 from maskless.diagrams.output_folder import RunFolder
@@ -268,7 +269,8 @@ def _identify_hammerstein(excited: dict, order: int, out: Path, echo) -> dict:
     """
     recording = Path(excited["files"]["recording"])
     share = excited.get("design", {}).get("fit_share", RANDOM_LEVELS_FIT_SHARE)
-    estimation, validation = f"0:{share!r}", f"{share!r}:1"
+    parts = parts_of_share(share)
+    estimation, validation = parts["estimation"], parts["validation"]
     ts = excited["sample_period_s"]
     flags = {"--input": str(recording), "--ts": repr(ts), "--orders": str(order)}
     flags |= {"--method": "hammerstein", "--estimation": estimation, "--validation": validation}

@@ -20,7 +20,10 @@ space, but a file whose writer died (or that was cut at any byte) can be read ba
 complete message, which a chunked file cannot promise (a whole chunk would be lost). A writer
 whose run stops early but which can still finish its file (``write_recording_batches`` when its
 caller is gone) adds a ``maskless.cut`` Metadata record before the footer: the file is whole to
-any MCAP reader, and ``read_recording`` reports it as truncated.
+any MCAP reader, and ``read_recording`` reports it as truncated. What a writer says of the whole
+run before it begins (a designed experiment's ``maskless.fit_split``: the parts to fit and judge a
+model on) are Metadata records the file opens with, so a cut file still says it
+(``read_leading_metadata``).
 
 Topics and fields (format version 2). A field is named after the Drake output port its values come
 from (``diagrams.closed_loop.export_and_log``), so a signal has one name from the diagram to the
@@ -76,6 +79,7 @@ _EXPORTS = {
             "BLADDER_PRESSURE_TOPIC",
             "CAMERA_MESSAGE_ENCODING",
             "COMMAND_TOPIC",
+            "FIT_SPLIT_METADATA",
             "FUSION_TOPIC",
             "HEAD_HEIGHT_TOPIC",
             "MESSAGE_ENCODING",
@@ -91,7 +95,13 @@ _EXPORTS = {
         "maskless.recording.format",
     ),
     **dict.fromkeys(
-        ("Recording", "TruncatedRecordingWarning", "read_camera_frames", "read_recording"),
+        (
+            "Recording",
+            "TruncatedRecordingWarning",
+            "read_camera_frames",
+            "read_leading_metadata",
+            "read_recording",
+        ),
         "maskless.recording.reading",
     ),
     **dict.fromkeys(

@@ -23,6 +23,9 @@ PROFILE = ""
 SCHEMA_VERSION = 2
 # The Metadata record a recording cut short ends with, before its footer (``RecordingWriter``).
 CUT_METADATA = "maskless.cut"
+# The Metadata record a designed experiment's recording opens with: the parts of it to fit and to
+# judge a model on ("estimation", "validation": START:STOP as `maskless identify` takes them).
+FIT_SPLIT_METADATA = "maskless.fit_split"
 
 REFERENCE_TOPIC = "/reference"
 HEAD_HEIGHT_TOPIC = "/plant/head_height"

@@ -17,6 +17,7 @@ from foxglove.messages import CompressedImage, ImageAnnotations
 from google.protobuf.message import DecodeError
 from mcap.exceptions import EndOfFile, McapError
 from mcap.records import Channel as McapChannel
+from mcap.records import Header as McapHeader
 from mcap.records import Message as McapMessage
 from mcap.records import Metadata as McapMetadata
 from mcap.records import Schema as McapSchema
@@ -166,15 +167,41 @@ def read_recording(path: str | PathLike[str], topics: Collection[str] | None = N
     return recording
 
 
-def _read_mcap_bytes(path: Path) -> bytes:
-    """The bytes of an MCAP file, or of a prefix of one.
+def read_leading_metadata(path: str | PathLike[str]) -> dict[str, dict[str, str]]:
+    """The Metadata records a recording opens with (``RecordingWriter``'s ``metadata``), by name.
+
+    Only the file's first bytes are read, up to its first schema, channel or message: what a
+    writer said of the whole run before it began, which a cut-off file still holds. A recording
+    written without any (or before they existed) gives an empty dict.
+
+    Raises:
+        MissingFileError, RecordError: as ``read_recording``.
+    """
+    path = Path(path)
+    found = {}
+    for record in _RecordStream(_read_mcap_bytes(path, _LEADING_BYTES)):
+        if not isinstance(record, McapMetadata):
+            if not isinstance(record, McapHeader):
+                break
+            continue
+        found[record.name] = dict(record.metadata)
+    return found
+
+
+# More than a recording's leading metadata takes: a few short strings.
+_LEADING_BYTES = 1 << 16
+
+
+def _read_mcap_bytes(path: Path, limit: int = -1) -> bytes:
+    """The bytes of an MCAP file (its first ``limit`` when not -1), or of a prefix of one.
 
     Raises:
         MissingFileError: If the file does not exist.
         RecordError: If it cannot be read, or does not start as MCAP does (bad magic).
     """
     try:
-        data = path.read_bytes()
+        with open(path, "rb") as stream:
+            data = stream.read(limit)
     except FileNotFoundError:
         raise MissingFileError(f"MCAP recording not found: {path}") from None
     except OSError as error:  # a folder, or a file that cannot be read

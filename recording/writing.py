@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -24,7 +24,10 @@ from maskless.recording.format import (
 
 
 def write_recording(
-    path: str | PathLike[str], channels: Sequence[Channel], frames: Sequence[CameraFrame] = ()
+    path: str | PathLike[str],
+    channels: Sequence[Channel],
+    frames: Sequence[CameraFrame] = (),
+    metadata: Mapping[str, Mapping[str, str]] | None = None,
 ) -> None:
     """Writes a simulation recording as MCAP.
 
@@ -41,16 +44,19 @@ def write_recording(
             samples is still registered, so its topic appears in the file.
         frames: Camera frames, each camera's in non-decreasing time. The cameras' topics are
             registered in the order their first frames come.
+        metadata: Metadata records the file opens with, name -> {key: value} (strings), as
+            ``RecordingWriter`` writes them; none when None.
 
     Raises:
         ValueError: If a topic is unknown or repeated, a column has the wrong length or shape, the
             field names are not exactly the schema's required fields, the times are not
             non-decreasing integers (ns), or a camera's frames go back in time. The message names
-            the topic and field, or the camera.
+            the topic and field, or the camera; or a metadata record is not strings.
     """
     cameras = list(dict.fromkeys(frame.camera for frame in _checked_frames(frames)))
     batch = _Batch.of(channels, frames, cameras)
-    with RecordingWriter(path, [channel.topic for channel in channels], cameras) as writer:
+    topics = [channel.topic for channel in channels]
+    with RecordingWriter(path, topics, cameras, metadata) as writer:
         writer._write_batch(batch)
 
 
@@ -69,20 +75,28 @@ class RecordingWriter:
     """
 
     def __init__(
-        self, path: str | PathLike[str], topics: Sequence[str], cameras: Sequence[str] = ()
+        self,
+        path: str | PathLike[str],
+        topics: Sequence[str],
+        cameras: Sequence[str] = (),
+        metadata: Mapping[str, Mapping[str, str]] | None = None,
     ):
-        """Opens ``path`` (overwritten) and registers ``topics``, in order, then ``cameras``.
+        """Opens ``path`` (overwritten): ``metadata``, then ``topics`` in order, then ``cameras``.
 
         Args:
             path: Output file; overwritten if it exists.
             topics: The JSON topics every batch carries a channel for, in this order.
             cameras: The cameras whose frames the batches may carry; each gets an image and an
                 annotations topic (``maskless.camera_images``).
+            metadata: Metadata records, name -> {key: value} (strings), written first so that a
+                file cut anywhere after them still says them (``read_leading_metadata``).
 
         Raises:
-            ValueError: If a topic is unknown or repeated, or a camera name is invalid or
-                repeated (before the file is opened).
+            ValueError: If a topic is unknown or repeated, a camera name is invalid or repeated,
+                or a metadata record is not strings or is named ``maskless.cut`` (before the
+                file is opened).
         """
+        metadata = _checked_metadata(metadata or {})
         if len(set(topics)) != len(topics):
             raise ValueError(f"topics repeat: {list(topics)}")
         if len(set(cameras)) != len(cameras):
@@ -104,6 +118,8 @@ class RecordingWriter:
             enable_data_crcs=True,
         )
         self._writer.start(profile=PROFILE, library=LIBRARY)
+        for name, values in metadata.items():
+            self._writer.add_metadata(name, values)
         self._channel_ids = []
         self._register_json_topics(topics, schemas)
         self._register_camera_topics(camera_topics)
@@ -200,6 +216,24 @@ class RecordingWriter:
                 self._writer.finish()
         finally:
             self._stream.close()
+
+
+def _checked_metadata(metadata: Mapping[str, Mapping[str, str]]) -> dict[str, dict[str, str]]:
+    """``metadata`` as plain dicts, refused by name where MCAP cannot hold it or it would lie."""
+    checked = {}
+    for name, values in metadata.items():
+        if name == CUT_METADATA:
+            raise ValueError(f"metadata {name!r}: only a run cut short is marked so (mark_cut)")
+        if not (
+            isinstance(name, str)
+            and isinstance(values, Mapping)
+            and all(
+                isinstance(key, str) and isinstance(value, str) for key, value in values.items()
+            )
+        ):
+            raise ValueError(f"metadata {name!r}: expected a name and keys and values of text")
+        checked[name] = dict(values)
+    return checked
 
 
 def write_recording_batches(

@@ -1,7 +1,12 @@
-"""Shared fixtures: the shipped configuration."""
+"""Shared fixtures: the shipped configuration, short runs and a designed excitation."""
+
+import contextlib
+import io
+import json
 
 import pytest
 
+from maskless.diagrams.cli import main
 from maskless.diagrams.scenario import (
     PaperLqg,
     PaperPlant,
@@ -48,3 +53,18 @@ def short_run():
 def paper_short_run():
     """A 20 s run of the paper's plant and LQG with the reference step at 2 s."""
     return _short_run("paper", "paper-lqg")
+
+
+@pytest.fixture(scope="session")
+def designed_excitation(tmp_path_factory):
+    """(folder, printed summary) of 600 s of `maskless excite --signal designed-levels`, seed 3.
+
+    Shared: the design's rounds fit the record as they go, about 40 s.
+    """
+    out = tmp_path_factory.mktemp("designed") / "ex"
+    args = ["excite", "--valve-drive", "split-range", "--signal", "designed-levels"]
+    args += ["--seed", "3", "--duration", "600", "--out", str(out), "--json"]
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert main(args) == 0
+    return out, json.loads(printed.getvalue())

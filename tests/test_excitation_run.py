@@ -20,7 +20,12 @@ from maskless.diagrams.scenario import load_scenario
 from maskless.diagrams.simulation import simulate_loop
 from maskless.diagrams.valve_level_experiment import SequentialDesign
 from maskless.errors import ConfigError
-from maskless.recording import read_camera_frames, read_recording
+from maskless.recording import (
+    FIT_SPLIT_METADATA,
+    read_camera_frames,
+    read_leading_metadata,
+    read_recording,
+)
 from maskless.systems.control.excitation import (
     MULTILEVEL_HOLD_S,
     MULTILEVEL_LEVELS,
@@ -329,12 +334,10 @@ def test_valve_levels_records_the_benchmarks_level_design(drive, tmp_path, capsy
     assert summary["signal"] == "valve-levels"
 
 
-def test_designed_levels_replace_a_stretch_of_the_levels_with_the_designs_holds(tmp_path, capsys):
-    out = tmp_path / "ex"
-    args = ["excite", "--valve-drive", "split-range", "--signal", "designed-levels"]
-    args += ["--seed", "3", "--duration", "600", "--out", str(out), "--json"]
-    assert main(args) == 0
-    summary = json.loads(capsys.readouterr().out)
+def test_designed_levels_replace_a_stretch_of_the_levels_with_the_designs_holds(
+    designed_excitation,
+):
+    out, summary = designed_excitation
     samples = summary["samples"]
     currents = _recorded_currents(out, samples)
     levels = random_level_currents(
@@ -354,6 +357,17 @@ def test_designed_levels_replace_a_stretch_of_the_levels_with_the_designs_holds(
     assert np.any((inside[:, 0] == TOP_CURRENT_A) & (inside[:, 1] > 0.0))
     assert not np.any((currents[:first, 0] > 0.0) & (currents[:first, 1] > 0.0))
     assert summary["signal"] == "designed-levels"
+    # The recording opens by saying the part to fit, for `maskless identify` to read.
+    assert read_leading_metadata(out / "run.mcap") == {
+        FIT_SPLIT_METADATA: {"estimation": "0:0.8", "validation": "0.8:1"}
+    }
+
+
+def test_only_a_designed_recording_says_the_part_to_fit(tmp_path):
+    out = tmp_path / "ex"
+    args = ["excite", "--valve-drive", "split-range", "--signal", "valve-levels"]
+    assert main([*args, "--hold", "0.5:3", "--duration", "20", "--out", str(out)]) == 0
+    assert read_leading_metadata(out / "run.mcap") == {}
 
 
 @pytest.mark.parametrize(

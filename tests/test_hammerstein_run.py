@@ -113,6 +113,32 @@ def test_identify_hammerstein_reads_the_fields_it_is_given(recording, tmp_path, 
     assert f"--output {csv}: --method hammerstein reads" in capsys.readouterr().err
 
 
+def test_identify_hammerstein_takes_a_designed_recordings_parts_and_warns_another(
+    designed_excitation, tmp_path, capsys
+):
+    folder, _ = designed_excitation
+    recording = folder / "run.mcap"
+    argv = ["identify", "--input", str(recording), "--ts", "0.0666667", "--method", "hammerstein"]
+    capsys.readouterr()
+    # Before recordings said their split, a fit on another part than the designed one was silent:
+    # on a still patient's advised record it read the inlet's start 7 mA off (issue 14). One
+    # fit (6 s here): the part given is fitted, and warned; the other is the design's.
+    argv += ["--estimation", "0:0.7", "--no-plots", "--out", str(tmp_path / "id"), "--json"]
+    assert main(argv) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert (report["estimation"], report["estimation_from"]) == ("0:0.7", "given")
+    assert (report["validation"], report["validation_from"]) == ("0.8:1", "the recording's design")
+    (entry,) = report["models"]
+    assert entry["warnings"][0].startswith(
+        "--estimation 0:0.7 is not the part this recording was designed to be fitted on (0:0.8: "
+    )
+    # Judged on the design's validation part, by the model as its file loads.
+    u, y, _ = read_two_valve_record(recording)
+    part = parse_range("0.8:1", y.size, "--validation")
+    judged = fit_percent(y[part], load_identified_model(entry["model_file"]).simulate(u)[part])
+    assert entry["validation_simulation_fit_percent"] == pytest.approx(judged, abs=1e-6)
+
+
 def test_the_report_says_where_a_start_came_from_and_the_play_it_found():
     valve = {
         "starting_current_spread": [0.058, 0.062],
@@ -128,6 +154,10 @@ def test_the_report_says_where_a_start_came_from_and_the_play_it_found():
     }
     report = {
         "recording": "run.mcap",
+        "estimation": "0:0.8",
+        "estimation_from": "the recording's design",
+        "validation": "0.6:1",
+        "validation_from": "given",
         "plot": "hammerstein.png",
         "models": [
             {
@@ -140,7 +170,8 @@ def test_the_report_says_where_a_start_came_from_and_the_play_it_found():
             }
         ],
     }
-    inlet, outlet = format_hammerstein_report(report).splitlines()[2:4]
+    split, _, inlet, outlet = format_hammerstein_report(report).splitlines()[1:5]
+    assert split == "  fitted on 0:0.8 (the recording's design), judged on 0.6:1 (given)"
     assert "play" not in inlet and "inlet: starts at 60.0 mA (the record cannot" in inlet
     assert (
         "from a section: its settled levels with the other valve held open, play ±2.6 mA" in outlet
@@ -148,14 +179,14 @@ def test_the_report_says_where_a_start_came_from_and_the_play_it_found():
     # A joint search's spread says how close to the best cost its searches had to end, and is
     # where they ended, not a range the record rules out.
     report["models"][0]["valves"]["inlet"] = {**valve, "spread_cost_tolerance": 0.081}
-    inlet = format_hammerstein_report(report).splitlines()[2]
+    inlet = format_hammerstein_report(report).splitlines()[3]
     assert "(searches ending within 8.1 % of the best cost ended at " in inlet
     assert "cannot tell apart" not in inlet
     # The fit's warnings are shown, each on its own line, before the model file.
     report["models"][0]["warnings"] = ["the section was fitted as a sum of curves"]
     lines = format_hammerstein_report(report).splitlines()
-    assert lines[4] == "    WARNING: the section was fitted as a sum of curves"
-    assert lines[5].startswith("    model file")
+    assert lines[5] == "    WARNING: the section was fitted as a sum of curves"
+    assert lines[6].startswith("    model file")
 
 
 @pytest.mark.parametrize(

@@ -19,6 +19,7 @@ from mcap.decoder import DecoderFactory as McapDecoderFactory
 from mcap.reader import make_reader
 from mcap.records import Channel as McapChannel
 from mcap.records import Message as McapMessage
+from mcap.records import Metadata as McapMetadata
 from mcap.records import Schema as McapSchema
 from mcap.stream_reader import StreamReader
 from mcap.writer import Writer
@@ -38,6 +39,7 @@ from maskless.recording import (
     current_name,
     filter_estimate_topic,
     read_camera_frames,
+    read_leading_metadata,
     read_recording,
     schema_for_topic,
     sensor_measurement_topic,
@@ -320,6 +322,55 @@ def test_truncated_file_reads_exact_prefix(tmp_path):
             expected.setdefault(topic, []).append((log_time, payload))
         got = {topic: msgs for topic, msgs in rec.messages.items() if msgs}
         assert got == expected, f"cut at byte {cut}"
+
+
+SPLIT = {"maskless.fit_split": {"estimation": "0:0.8", "validation": "0.8:1"}}
+
+
+def test_leading_metadata_opens_the_file_and_survives_any_cut_after_it(tmp_path):
+    path = tmp_path / "split.mcap"
+    write_recording(path, _make_channels(), metadata=SPLIT)
+    data = path.read_bytes()
+    # Independent reference: the upstream streaming reader meets it before any channel.
+    with open(path, "rb") as stream:
+        records = list(StreamReader(stream).records)
+    first_channel = next(i for i, r in enumerate(records) if isinstance(r, McapChannel))
+    (metadata,) = [(i, r) for i, r in enumerate(records) if isinstance(r, McapMetadata)]
+    assert metadata[0] < first_channel
+    assert {metadata[1].name: metadata[1].metadata} == SPLIT
+    assert read_leading_metadata(path) == SPLIT
+    # The messages are those of a file without it.
+    plain = tmp_path / "plain.mcap"
+    write_recording(plain, _make_channels())
+    assert read_recording(path).messages == read_recording(plain).messages
+    assert read_leading_metadata(plain) == {}
+    ends = _message_record_ends(data)
+    for cut in (ends[0], ends[0] - 1, len(data) // 3):
+        cut_path = tmp_path / f"cut_{cut}.mcap"
+        cut_path.write_bytes(data[:cut])
+        assert read_leading_metadata(cut_path) == SPLIT, f"cut at byte {cut}"
+    cut_path.write_bytes(data[: len(MAGIC) + 3])  # inside the header: nothing said yet
+    assert read_leading_metadata(cut_path) == {}
+
+
+@pytest.mark.parametrize(
+    "metadata, message",
+    [
+        ({"maskless.cut": {"reason": "x"}}, "only a run cut short"),
+        (
+            {"maskless.fit_split": {"estimation": 0.8}},
+            "expected a name and keys and values of text",
+        ),
+        ({"maskless.fit_split": "0:0.8"}, "expected a name and keys and values of text"),
+    ],
+)
+def test_metadata_mcap_cannot_hold_or_that_would_lie_is_refused_before_the_file(
+    tmp_path, metadata, message
+):
+    path = tmp_path / "refused.mcap"
+    with pytest.raises(ValueError, match=message):
+        write_recording(path, _make_channels(), metadata=metadata)
+    assert not path.exists()
 
 
 def test_file_cut_inside_magic_is_empty_and_truncated(tmp_path):

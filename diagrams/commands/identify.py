@@ -20,6 +20,7 @@ from maskless.analysis.identification import METHODS
 from maskless.analysis.identification.model_file import MODEL_FILE_UNITS
 from maskless.analysis.identification.records import VALVE_CURRENTS_FIELDS
 from maskless.diagrams.cli import add_out_argument, given_labels
+from maskless.diagrams.fit_split import DEFAULT_ESTIMATION, DEFAULT_VALIDATION
 from maskless.diagrams.identification_request import (
     DEFAULT_MCAP_INPUT,
     DEFAULT_MCAP_OUTPUT,
@@ -93,15 +94,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--estimation",
-        default="0:0.6",
+        default=None,
         metavar="START:STOP",
-        help="fractions (0:0.6) or sample indices (0:11782); default 0:0.6",
+        help=f"fractions (0:0.6) or sample indices (0:11782); default {DEFAULT_ESTIMATION}, or "
+        "for --method hammerstein the part a designed recording was designed to be fitted on",
     )
     parser.add_argument(
         "--validation",
-        default="0.6:1",
+        default=None,
         metavar="START:STOP",
-        help="the part the models are judged on; default 0.6:1",
+        help=f"the part the models are judged on; default {DEFAULT_VALIDATION}, or for --method "
+        "hammerstein a designed recording's own",
     )
     parser.add_argument(
         "--detrend",
@@ -166,8 +169,8 @@ def identification_request(args: argparse.Namespace) -> IdentificationRequest:
         method=args.method,
         input_column=args.input_column,
         output_column=args.output_column,
-        estimation=args.estimation,
-        validation=args.validation,
+        estimation=DEFAULT_ESTIMATION if args.estimation is None else args.estimation,
+        validation=DEFAULT_VALIDATION if args.validation is None else args.validation,
         detrend=args.detrend,
         k_step=args.k_step,
         estimate_initial_state=args.initial_state == "estimate",

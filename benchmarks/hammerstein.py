@@ -39,7 +39,9 @@ Figures, against the issue's targets:
 
 - each valve's estimated starting current against the plant's (target: within 5 mA), and the
   interval of starting currents the record cannot tell apart (``starting_current_spread``:
-  the 95 % profile interval of a fit from settled holds);
+  the 95 % profile interval of a fit from settled holds); its saturation current against the
+  plant's, and the interval of saturations the record cannot tell apart
+  (``saturation_current_spread_ma``);
 - each valve's static curve (the map times the DC gain) against the plant's own steady lift per
   current with the other valve shut (``equilibrium_state``), over the working range from the
   plant's starting to its saturation current: the largest error as a fraction of the curve's
@@ -201,6 +203,11 @@ def valve_figures(fit, parameters) -> dict:
             - a_to_ma(valve.starting_current_a),
             "starting_current_spread_ma": list(spread[index]),
             "saturation_current_ma": model.maps[index].saturation_current,
+            "saturation_current_error_ma": model.maps[index].saturation_current
+            - a_to_ma(valve.saturation_current_a),
+            "saturation_current_spread_ma": (
+                list(fit.saturation_intervals[index]) if fit.saturation_intervals else None
+            ),
             "full_scale_lift_mm": 1e3 * full_scale,
             "static_curve_max_error_of_full_scale": float(
                 np.max(np.abs(estimate - truth)) / full_scale

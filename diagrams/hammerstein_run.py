@@ -242,6 +242,12 @@ def format_hammerstein_report(report: dict) -> str:
                 if valve["saturation_current"] <= highest
                 else f"does not saturate up to the record's highest {1e3 * highest:.1f} mA"
             )
+            saturation_spread = valve.get("saturation_current_spread")
+            if saturation_spread is not None:
+                low_c, high_c = saturation_spread
+                saturation += (
+                    f" (the record cannot tell apart {1e3 * low_c:.1f}-{1e3 * high_c:.1f} mA)"
+                )
             play = valve.get("play_half_width")
             tolerance = valve.get("spread_cost_tolerance")
             spread = f"{1e3 * low:.1f}-{1e3 * high:.1f} mA"

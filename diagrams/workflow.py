@@ -292,6 +292,11 @@ def _identify_hammerstein(excited: dict, order: int, out: Path, echo) -> dict:
             "starting_current_spread_ma": [a_to_ma(c) for c in valve["starting_current_spread"]],
             "starting_current_from": valve["starting_current_from"],
             "saturation_current_ma": a_to_ma(valve["saturation_current"]),
+            "saturation_current_spread_ma": (
+                None
+                if valve["saturation_current_spread"] is None
+                else [a_to_ma(c) for c in valve["saturation_current_spread"]]
+            ),
             "dc_gain_mm": 1e3 * valve["dc_gain"],
         }
         for name, valve in model["valves"].items()

@@ -162,6 +162,8 @@ def test_maps_from_the_joint_search_are_named_with_the_holds_that_would_settle(p
     assert planted_fit[2].summary()["valves"]["inlet"]["starting_current_from"] == (
         "the joint search"
     )
+    # A joint search reads no saturation's interval.
+    assert planted_fit[2].summary()["valves"]["inlet"]["saturation_current_spread"] is None
 
 
 def test_the_search_cost_tolerance_counts_the_independent_samples_in_the_errors():

@@ -151,6 +151,7 @@ def test_the_report_says_where_a_start_came_from_and_the_play_it_found():
         **valve,
         "starting_current_from": "a section: its settled levels with the other valve held open",
         "play_half_width": 0.0026,
+        "saturation_current_spread": [0.1537, 0.1759],
     }
     report = {
         "recording": "run.mcap",
@@ -176,6 +177,9 @@ def test_the_report_says_where_a_start_came_from_and_the_play_it_found():
     assert (
         "from a section: its settled levels with the other valve held open, play ±2.6 mA" in outlet
     )
+    # A saturation read from settled levels says what the record cannot tell apart too.
+    assert "saturates at 165.0 mA (the record cannot tell apart 153.7-175.9 mA)," in outlet
+    assert "saturates at 165.0 mA," in inlet
     # A joint search's spread says how close to the best cost its searches had to end, and is
     # where they ended, not a range the record rules out.
     report["models"][0]["valves"]["inlet"] = {**valve, "spread_cost_tolerance": 0.081}

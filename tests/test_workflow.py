@@ -235,6 +235,7 @@ def test_the_hammerstein_stage_passes_on_the_fits_warnings_and_a_failed_verdict(
         "starting_current_spread": [0.1077, 0.1077],
         "starting_current_from": "the joint search",
         "saturation_current": 0.140,
+        "saturation_current_spread": None,
         "dc_gain": 0.0178,
     }
     searched = "too few holds settled to read the static curves from them"

@@ -118,6 +118,10 @@ class HammersteinFit:
         profile_intervals: per valve, the 95 % profile interval alone; empty as
             ``start_intervals``. The sequential design aims its holds at it
             (``valve_level_experiment.fit_reading``).
+        saturation_intervals: per valve, the saturation currents the settled holds cannot tell
+            apart, found as ``start_intervals`` are (``settled_curve``); empty as
+            ``start_intervals``. A designed record's levels seldom come between 150 and 180 mA,
+            so the curve's top there is the quadratic's.
         play_half_widths: per valve, its play band's half-width the settled holds show;
             empty as ``start_intervals``.
         starts_from_sections: per valve, whether a section of the record (``section_start``:
@@ -149,6 +153,7 @@ class HammersteinFit:
     highest_currents: tuple[float, ...] = ()
     start_intervals: tuple[tuple[float, float], ...] = ()
     profile_intervals: tuple[tuple[float, float], ...] = ()
+    saturation_intervals: tuple[tuple[float, float], ...] = ()
     play_half_widths: tuple[float, ...] = ()
     starts_from_sections: tuple[bool, ...] = ()
     starts_from_bent_sections: tuple[bool, ...] = ()
@@ -176,9 +181,11 @@ class HammersteinFit:
         """Per valve: its map's ends, spread and static curve; and the poles.
 
         Each valve's starting current, where it came from and ``starting_current_spread``,
-        saturation current and the record's highest current, DC gain and the static curve at the
-        map's knots; ``play_half_width`` the settled holds show (None without them);
-        ``spread_cost_tolerance`` the joint search's ``search_tolerance`` (None without one).
+        saturation current, ``saturation_current_spread`` (the settled holds'
+        ``saturation_intervals``; None without them) and the record's highest current, DC gain
+        and the static curve at the map's knots; ``play_half_width`` the settled holds show
+        (None without them); ``spread_cost_tolerance`` the joint search's
+        ``search_tolerance`` (None without one).
         """
         model = self.model
         gains = model.dc_gains()
@@ -202,6 +209,9 @@ class HammersteinFit:
                 "spread_cost_tolerance": None if self.start_intervals else self.search_tolerance,
                 "highest_current_in_record": self.highest_currents[i],
                 "saturation_current": valve_map.saturation_current,
+                "saturation_current_spread": (
+                    list(self.saturation_intervals[i]) if self.saturation_intervals else None
+                ),
                 "dc_gain": float(gains[i]),
                 "curve_currents": valve_map.currents.tolist(),
                 "curve_outputs": (gains[i] * valve_map.openings).tolist(),
@@ -358,6 +368,7 @@ def estimate_hammerstein(
         advised_hold_s=advised,
         start_intervals=tuple(map(tuple, curves.start_intervals.tolist())),
         profile_intervals=tuple(map(tuple, curves.profile_intervals.tolist())),
+        saturation_intervals=tuple(map(tuple, curves.saturation_intervals.tolist())),
         play_half_widths=curves.play_half_widths,
         starts_from_sections=curves.from_sections,
         starts_from_bent_sections=curves.bent_sections,

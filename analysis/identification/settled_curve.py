@@ -144,7 +144,9 @@ class StaticCurves:
     Bernstein coefficients' non-negative steps times the input's sign, so each curve's full value
     (its DC gain) is their sum; ``start_intervals`` (inputs, 2) the starting currents the levels
     cannot tell apart (the 95 % profile interval, widened to the gaps of levels about its starts),
-    ``profile_intervals`` (inputs, 2) the profile intervals alone; ``play_half_widths``
+    ``profile_intervals`` (inputs, 2) the profile intervals alone; ``saturation_intervals``
+    (inputs, 2) the saturation currents the levels cannot tell apart, found so too (a start's
+    profile turned round); ``play_half_widths``
     (inputs,) the half-width of each valve's play band (its section's, where one found its
     start); ``from_sections`` (inputs,) whether a section found it (``section_start``),
     ``straight_section_starts`` (inputs,) where that section's hinge was bent once above the
@@ -169,6 +171,7 @@ class StaticCurves:
     section_levels: np.ndarray
     settled_currents: tuple[np.ndarray, ...]
     profile_intervals: np.ndarray
+    saturation_intervals: np.ndarray
     unread_section_levels: int = 0
     straight_section_starts: tuple[float | None, ...] = ()
     sections_read_apart: tuple[bool, ...] = ()
@@ -375,29 +378,36 @@ def _curves_beside(levels: SettledLevels, fractions, scale, limits, read: _Secti
     columns = _columns(x, ends, signs)
     sse, coefficients = _nonnegative_fit(columns, target)
     variance = sse / max(1, y.size - parameter_count(inputs))
-    profiled = [
-        sections[i].profile_interval
-        if i in sections
-        else _within(
-            _start_interval(
-                lambda w, i=i: spool(i, w),
-                PLAY_HALF_WIDTHS,
-                target,
-                columns[:i] + columns[i + 1 :],
-                max_start,
-                max_saturation,
-            ),
-            sse + CHI2_95 * variance,
-            ends[i][0],
+    threshold = sse + CHI2_95 * variance
+    profiled, intervals, saturation_intervals = [], [], []
+    for i in range(inputs):
+        start_profile, saturation_profile = _end_profiles(
+            lambda w, i=i: spool(i, w),
+            [plays[i]] if i in sections else PLAY_HALF_WIDTHS,
+            target,
+            columns[:i] + columns[i + 1 :],
+            max_start,
+            max_saturation,
+            sections[i].start if i in sections else None,
         )
-        for i in range(inputs)
-    ]
-    intervals = [
-        sections[i].interval
-        if i in sections
-        else covering_levels_gap(profiled[i], spool(i, plays[i]), ends[i][0], 0.0, max_start)
-        for i in range(inputs)
-    ]
+        positions = spool(i, plays[i])
+        if i in sections:
+            profiled.append(sections[i].profile_interval)
+            intervals.append(sections[i].interval)
+        else:
+            profiled.append(_within(start_profile, threshold, ends[i][0]))
+            intervals.append(
+                covering_levels_gap(profiled[i], positions, ends[i][0], 0.0, max_start)
+            )
+        saturation_intervals.append(
+            covering_levels_gap(
+                _within(saturation_profile, threshold, ends[i][1]),
+                positions,
+                ends[i][1],
+                ends[i][0],
+                max_saturation,
+            )
+        )
     increments = np.array(
         [signs[i] * coefficients[1 + 2 * i : 3 + 2 * i] for i in range(inputs)], dtype=float
     )
@@ -414,6 +424,9 @@ def _curves_beside(levels: SettledLevels, fractions, scale, limits, read: _Secti
         ),
         profile_intervals=np.array(
             [low[i] + span[i] * np.asarray(profiled[i]) for i in range(inputs)]
+        ),
+        saturation_intervals=np.array(
+            [low[i] + span[i] * np.asarray(saturation_intervals[i]) for i in range(inputs)]
         ),
         play_half_widths=tuple(float(span[i] * plays[i]) for i in range(inputs)),
         from_sections=tuple(i in sections for i in range(inputs)),
@@ -539,41 +552,99 @@ def _columns(x, ends, signs):
     return [_basis(x[:, i], *ends[i]) * signs[i] for i in range(x.shape[1])]
 
 
-def _start_interval(spool_of, plays, target, held, max_start, max_saturation):
-    """(starts on the coarse grid, the lowest sum of squares of each), the others' curves held.
+def _end_profiles(spool_of, plays, target, held, max_start, max_saturation, fixed_start=None):
+    """The start's and the saturation's profiles on the coarse grid, the others' curves held.
 
-    At each start the sign and the play (over ``plays``) are at their best, and the saturation:
-    the coarse grid's best, then searched within a grid step of it (golden section). Taken from
-    the coarse grid alone, the profile rose faster than the fit's refined best: the interval
-    shrank to a grid step either side of the best start and held the plant's start on 29 of 35
-    still patients (stop 42 of issue 14; README).
+    Each is (grid, the lowest sum of squares at each of its points), the sign and the play (over
+    ``plays``) at their best, and the other end: the coarse grid's best, then searched within a
+    grid step of it (golden section). One coarse pass serves both. Taken from the coarse grid
+    alone, the start's profile rose faster than the fit's refined best: the interval shrank to a
+    grid step either side of the best start and held the plant's start on 29 of 35 still
+    patients (stop 42 of issue 14; README). With ``fixed_start`` (its section's) the start's
+    profile is None and the saturation's is not refined.
     """
-    starts = grid_starts(max_start)
+    starts = grid_starts(max_start) if fixed_start is None else np.array([fixed_start])
     pairs = np.asarray(coarse_pairs(starts, max_saturation))
-    start_of_pair = np.searchsorted(starts, pairs[:, 0])
-    lowest = np.full(starts.size, np.inf)
-    best_saturation = np.zeros(starts.size)
-    best_play = np.zeros(starts.size)
+    # Saturations repeat across starts; rounded, so that one value is one point of its profile.
+    saturations, of_saturation = np.unique(np.round(pairs[:, 1], 9), return_inverse=True)
+    by_start = _CoarseProfile(starts, np.searchsorted(starts, pairs[:, 0]), pairs[:, 1])
+    by_saturation = _CoarseProfile(saturations, of_saturation, pairs[:, 0])
     for play in plays:
         sse = _lowest_sums(spool_of(play), target, held, pairs).min(axis=1)
-        # Each start's lowest pair (the first of equals), kept where it beats the plays before.
-        order = np.lexsort((sse, start_of_pair))
-        first = order[np.r_[True, np.diff(start_of_pair[order]) != 0]]
-        better = sse[first] < lowest[start_of_pair[first]]
-        kept, rows = start_of_pair[first][better], first[better]
-        lowest[kept], best_saturation[kept], best_play[kept] = sse[rows], pairs[rows, 1], play
-    for play in np.unique(best_play[np.isfinite(lowest)]):
-        rows = np.flatnonzero((best_play == play) & np.isfinite(lowest))
-        x = spool_of(play)
+        by_start.take(sse, play)
+        by_saturation.take(sse, play)
+    if fixed_start is not None:
+        return None, (saturations, by_saturation.lowest)
 
-        def sums(saturations, rows=rows, x=x):
-            ends = np.column_stack([starts[rows], saturations])
-            return _lowest_sums(x, target, held, ends).min(axis=1)
+    def start_ends(rows, chosen):
+        return np.column_stack([starts[rows], chosen])
 
-        low = np.maximum(best_saturation[rows] - _GRID_STEP, starts[rows] + _GRID_STEP)
-        high = np.minimum(best_saturation[rows] + _GRID_STEP, max_saturation)
-        lowest[rows] = np.minimum(lowest[rows], _golden_section(sums, low, high))
-    return starts, lowest
+    def saturation_ends(rows, chosen):
+        return np.column_stack([chosen, saturations[rows]])
+
+    def saturation_bounds(rows):
+        best = by_start.best_other[rows]
+        low = np.maximum(best - _GRID_STEP, starts[rows] + _GRID_STEP)
+        return low, np.minimum(best + _GRID_STEP, max_saturation)
+
+    def start_bounds(rows):
+        best = by_saturation.best_other[rows]
+        low = np.maximum(best - _GRID_STEP, 0.0)
+        high = np.minimum(best + _GRID_STEP, saturations[rows] - _GRID_STEP)
+        return low, np.maximum(np.minimum(high, max_start), low)
+
+    refined = []
+    for profile, ends_of, bounds in (
+        (by_start, start_ends, saturation_bounds),
+        (by_saturation, saturation_ends, start_bounds),
+    ):
+        profile.refine(spool_of, target, held, ends_of, bounds)
+        refined.append((profile.grid, profile.lowest))
+    return tuple(refined)
+
+
+class _CoarseProfile:
+    """One end's profile over the coarse grid, built play by play.
+
+    Per point of ``grid``: its lowest sum of squares so far, and the other end and the play it
+    was found at.
+    """
+
+    def __init__(self, grid, point_of_pair, other_of_pair):
+        self.grid, self._point, self._other = grid, point_of_pair, other_of_pair
+        self.lowest = np.full(grid.size, np.inf)
+        self.best_other = np.zeros(grid.size)
+        self.best_play = np.zeros(grid.size)
+
+    def take(self, sse, play) -> None:
+        """Each point's lowest pair at ``play``, kept where it beats the plays before.
+
+        On equal sums the first pair counts.
+        """
+        order = np.lexsort((sse, self._point))
+        first = order[np.r_[True, np.diff(self._point[order]) != 0]]
+        better = sse[first] < self.lowest[self._point[first]]
+        kept, rows = self._point[first][better], first[better]
+        self.lowest[kept], self.best_other[kept], self.best_play[kept] = (
+            sse[rows],
+            self._other[rows],
+            play,
+        )
+
+    def refine(self, spool_of, target, held, ends_of, bounds) -> None:
+        """Each point's other end searched within ``bounds(rows)`` at its play (golden section).
+
+        ``ends_of(rows, other)`` gives the (start, saturation) pairs of those points.
+        """
+        for play in np.unique(self.best_play[np.isfinite(self.lowest)]):
+            rows = np.flatnonzero((self.best_play == play) & np.isfinite(self.lowest))
+            x = spool_of(play)
+
+            def sums(chosen, rows=rows, x=x):
+                return _lowest_sums(x, target, held, ends_of(rows, chosen)).min(axis=1)
+
+            low, high = bounds(rows)
+            self.lowest[rows] = np.minimum(self.lowest[rows], _golden_section(sums, low, high))
 
 
 def _golden_section(cost, low, high, tolerance=1e-7):
@@ -603,10 +674,10 @@ def _golden_section(cost, low, high, tolerance=1e-7):
     return best
 
 
-def _within(profile, threshold, best_start):
-    """(lowest, highest) start with its coarse profile within ``threshold``."""
-    starts, lowest = profile
-    return profile_interval(starts, lowest, threshold, best_start, _GRID_STEP)
+def _within(profile, threshold, best):
+    """(lowest, highest) start (or saturation) with its coarse profile within ``threshold``."""
+    grid, lowest = profile
+    return profile_interval(grid, lowest, threshold, best, _GRID_STEP)
 
 
 def _profile(

@@ -74,33 +74,32 @@ def fit_split(
             recording's part when the recording's is.
     """
     designed = designed or {}
-    texts, sources, parts = [], [], {}
+    planned = {
+        name: parse_range(designed[name], samples, f"the recording's {name} part")
+        for name in ("estimation", "validation")
+        if name in designed
+    }
+    texts, sources, parts = [], [], []
     for name, given, default in (
         ("estimation", estimation, DEFAULT_ESTIMATION),
         ("validation", validation, DEFAULT_VALIDATION),
     ):
         if given is not None:
-            texts.append(given)
-            sources.append(GIVEN)
-        elif name in designed:
-            texts.append(designed[name])
-            sources.append(DESIGNED)
+            text, source, part = given, GIVEN, parse_range(given, samples, f"--{name}")
+        elif name in planned:
+            text, source, part = designed[name], DESIGNED, planned[name]
         else:
-            texts.append(default)
-            sources.append(DEFAULT)
-        if name in designed:
-            parts[DESIGNED, name] = parse_range(
-                designed[name], samples, f"the recording's {name} part"
-            )
-        parts[name] = parse_range(texts[-1], samples, f"--{name}")
+            text, source, part = default, DEFAULT, parse_range(default, samples, f"--{name}")
+        texts.append(text)
+        sources.append(source)
+        parts.append(part)
     warnings = ()
-    if estimation is not None and "estimation" in designed:
-        if parts["estimation"] != parts[DESIGNED, "estimation"]:
-            warnings = (
-                f"--estimation {estimation} is not the part this recording was designed to be "
-                f"fitted on ({designed['estimation']}: its rounds placed the levels that read the "
-                "valves' starting currents for a fit of that part), so the starts are read from "
-                "other levels than the design chose; leave --estimation out to fit the designed "
-                "part",
-            )
-    return FitSplit(*texts, *sources, parts["estimation"], parts["validation"], warnings)
+    if estimation is not None and "estimation" in planned and parts[0] != planned["estimation"]:
+        warnings = (
+            f"--estimation {estimation} is not the part this recording was designed to be "
+            f"fitted on ({designed['estimation']}: its rounds placed the levels that read the "
+            "valves' starting currents for a fit of that part), so the starts are read from "
+            "other levels than the design chose; leave --estimation out to fit the designed "
+            "part",
+        )
+    return FitSplit(*texts, *sources, *parts, warnings)

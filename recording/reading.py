@@ -180,10 +180,10 @@ def read_leading_metadata(path: str | PathLike[str]) -> dict[str, dict[str, str]
     path = Path(path)
     found = {}
     for record in _RecordStream(_read_mcap_bytes(path, _LEADING_BYTES)):
-        if not isinstance(record, McapMetadata):
-            if not isinstance(record, McapHeader):
-                break
+        if isinstance(record, McapHeader):
             continue
+        if not isinstance(record, McapMetadata):
+            break
         found[record.name] = dict(record.metadata)
     return found
 

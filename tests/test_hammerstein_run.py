@@ -25,6 +25,13 @@ def recording(tmp_path_factory):
     return out / "run.mcap"
 
 
+def _judged(recording, model, validation: str) -> float:
+    """The validation simulation fit of ``model`` simulated over the whole recording."""
+    u, y, _ = read_two_valve_record(recording)
+    part = parse_range(validation, y.size, "--validation")
+    return fit_percent(y[part], model.simulate(u)[part])
+
+
 def test_identify_hammerstein_writes_a_model_the_plants_load_and_a_report(
     recording, tmp_path, capsys
 ):
@@ -44,10 +51,9 @@ def test_identify_hammerstein_writes_a_model_the_plants_load_and_a_report(
     assert (out / "hammerstein.png").stat().st_size > 0
     # Judged on the validation part (the default 0.6:1) of the whole record's simulation, from
     # rest at its first currents, by the model as its file loads.
-    u, y, _ = read_two_valve_record(recording)
-    part = parse_range("0.6:1", y.size, "--validation")
-    judged = fit_percent(y[part], model.simulate(u)[part])
-    assert entry["validation_simulation_fit_percent"] == pytest.approx(judged, abs=1e-6)
+    assert entry["validation_simulation_fit_percent"] == pytest.approx(
+        _judged(recording, model, "0.6:1"), abs=1e-6
+    )
 
 
 def test_identify_hammerstein_without_plots_draws_none_and_removes_an_earlier_one(
@@ -133,10 +139,10 @@ def test_identify_hammerstein_takes_a_designed_recordings_parts_and_warns_anothe
         "--estimation 0:0.7 is not the part this recording was designed to be fitted on (0:0.8: "
     )
     # Judged on the design's validation part, by the model as its file loads.
-    u, y, _ = read_two_valve_record(recording)
-    part = parse_range("0.8:1", y.size, "--validation")
-    judged = fit_percent(y[part], load_identified_model(entry["model_file"]).simulate(u)[part])
-    assert entry["validation_simulation_fit_percent"] == pytest.approx(judged, abs=1e-6)
+    model = load_identified_model(entry["model_file"])
+    assert entry["validation_simulation_fit_percent"] == pytest.approx(
+        _judged(recording, model, "0.8:1"), abs=1e-6
+    )
 
 
 def test_the_report_says_where_a_start_came_from_and_the_play_it_found():

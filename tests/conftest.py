@@ -1,12 +1,14 @@
-"""Shared fixtures: the shipped configuration, short runs and a designed excitation."""
+"""Shared fixtures: the shipped configuration and short runs."""
 
-import contextlib
-import io
-import json
+import os
+
+# Each pytest-xdist worker has a core of its own: OpenBLAS's threads on top of the workers would
+# make each wait on the other (a sixth of the suite's time on two cores). Set before the imports
+# below load numpy, which reads it once; the tests' own subprocesses inherit it.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import pytest
 
-from maskless.diagrams.cli import main
 from maskless.diagrams.scenario import (
     PaperLqg,
     PaperPlant,
@@ -53,18 +55,3 @@ def short_run():
 def paper_short_run():
     """A 20 s run of the paper's plant and LQG with the reference step at 2 s."""
     return _short_run("paper", "paper-lqg")
-
-
-@pytest.fixture(scope="session")
-def designed_excitation(tmp_path_factory):
-    """(folder, printed summary) of 600 s of `maskless excite --signal designed-levels`, seed 3.
-
-    Shared: the design's rounds fit the record as they go, about 40 s.
-    """
-    out = tmp_path_factory.mktemp("designed") / "ex"
-    args = ["excite", "--valve-drive", "split-range", "--signal", "designed-levels"]
-    args += ["--seed", "3", "--duration", "600", "--out", str(out), "--json"]
-    printed = io.StringIO()
-    with contextlib.redirect_stdout(printed):
-        assert main(args) == 0
-    return out, json.loads(printed.getvalue())

@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from two_valve_recordings import recorded_currents
 
-from maskless.analysis.identification.records import VALVE_CURRENTS_FIELDS, read_mcap_signals
 from maskless.diagrams.cli import main
 from maskless.diagrams.excitation_design import plan_excitation
 from maskless.diagrams.excitation_run import (
@@ -21,7 +21,6 @@ from maskless.diagrams.simulation import simulate_loop
 from maskless.diagrams.valve_level_experiment import SequentialDesign
 from maskless.errors import ConfigError
 from maskless.recording import (
-    FIT_SPLIT_METADATA,
     read_camera_frames,
     read_leading_metadata,
     read_recording,
@@ -166,20 +165,13 @@ def test_excite_with_rendered_cameras_records_their_frames(tmp_path, capsys):
     assert sorted(frames) == ["kinect_v1", "kinect_v2"]
 
 
-def _recorded_currents(out, samples):
-    """The valve currents the recording holds at the excitation's samples (A), as (N, 2)."""
-    ((_, currents),) = read_mcap_signals(out / "run.mcap", VALVE_CURRENTS_FIELDS)
-    # The log also holds the instant the run ends, when the last sample is still held.
-    return currents[:samples]
-
-
 def test_independent_multilevel_records_each_valves_own_signal(tmp_path, capsys):
     out = tmp_path / "ex"
     args = ["excite", "--valve-drive", "independent", "--signal", "multilevel", "--seed", "4"]
     args += ["--hold", "0.5:3", "--duration", "20", "--out", str(out), "--json"]
     assert main(args) == 0
     summary = json.loads(capsys.readouterr().out)
-    currents = _recorded_currents(out, summary["samples"])
+    currents = recorded_currents(out, summary["samples"])
     # Each valve's levels span its whole range, 0 to 165 mA (assets/pneumatic.yaml), designed
     # here directly: the inlet from the run's seed, the outlet from its own.
     expected = [
@@ -202,7 +194,7 @@ def test_independent_uniform_is_clipped_to_each_valves_range(tmp_path, capsys):
     args = ["excite", "--valve-drive", "independent", "--offset", "140", "--amplitude", "50"]
     assert main([*args, "--duration", "30", "--seed", "2", "--out", str(out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
-    currents = _recorded_currents(out, summary["samples"])
+    currents = recorded_currents(out, summary["samples"])
     for column, (valve, seed) in enumerate((("inlet", 2), ("outlet", outlet_seed(2)))):
         designed = uniform_white_noise(0.050, 30.0, PERIOD_S, seed, offset=0.140).values
         np.testing.assert_array_equal(currents[:, column], np.clip(designed, 0.0, 0.165))
@@ -217,7 +209,7 @@ def test_split_range_never_opens_both_valves_and_recombines(tmp_path, capsys):
     args = ["excite", "--valve-drive", "split-range", "--amplitude", "120", "--seed", "5"]
     assert main([*args, "--duration", "30", "--out", str(out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
-    inlet, outlet = _recorded_currents(out, summary["samples"]).T
+    inlet, outlet = recorded_currents(out, summary["samples"]).T
     # About the split (the inlet's 60 mA starting current), the command range -45 to 165 mA.
     assert summary["offset_ma"] == pytest.approx(60.0)
     command = uniform_white_noise(0.120, 30.0, PERIOD_S, 5, offset=0.060).values
@@ -321,7 +313,7 @@ def test_valve_levels_records_the_benchmarks_level_design(drive, tmp_path, capsy
     args += ["--hold", "0.5:3", "--duration", "20", "--out", str(out), "--json"]
     assert main(args) == 0
     summary = json.loads(capsys.readouterr().out)
-    currents = _recorded_currents(out, summary["samples"])
+    currents = recorded_currents(out, summary["samples"])
     # The levels of benchmarks/hammerstein.py's design, from the run's seed, applied unclipped
     # (past saturation each valve is fully open whatever the current).
     arrangement = drive.replace("-", "_")
@@ -332,35 +324,6 @@ def test_valve_levels_records_the_benchmarks_level_design(drive, tmp_path, capsy
     if drive == "split-range":
         assert not np.any((currents[:, 0] > 0) & (currents[:, 1] > 0))
     assert summary["signal"] == "valve-levels"
-
-
-def test_designed_levels_replace_a_stretch_of_the_levels_with_the_designs_holds(
-    designed_excitation,
-):
-    out, summary = designed_excitation
-    samples = summary["samples"]
-    currents = _recorded_currents(out, samples)
-    levels = random_level_currents(
-        samples, PERIOD_S, (TOP_CURRENT_A,) * 2, (5.0, 60.0), 3, "split_range"
-    ).T
-    # The stretch: the last 47.5 % of the fitted first 80 % (SequentialDesign's defaults).
-    end = round(0.8 * samples)
-    first = round(0.525 * end)
-    np.testing.assert_allclose(summary["design"]["stretch_s"], [first * PERIOD_S, end * PERIOD_S])
-    assert summary["design"]["fit_share"] == 0.8
-    assert len(summary["design"]["round_start_intervals_ma"]) == 2
-    # Outside it, the run's random levels as valve-levels records them; inside, the design's
-    # holds, the outlet's with the inlet fully open (190 mA), which no split-range level does.
-    np.testing.assert_array_equal(currents[:first], levels[:first])
-    np.testing.assert_array_equal(currents[end:], levels[end:samples])
-    inside = currents[first:end]
-    assert np.any((inside[:, 0] == TOP_CURRENT_A) & (inside[:, 1] > 0.0))
-    assert not np.any((currents[:first, 0] > 0.0) & (currents[:first, 1] > 0.0))
-    assert summary["signal"] == "designed-levels"
-    # The recording opens by saying the part to fit, for `maskless identify` to read.
-    assert read_leading_metadata(out / "run.mcap") == {
-        FIT_SPLIT_METADATA: {"estimation": "0:0.8", "validation": "0.8:1"}
-    }
 
 
 def test_only_a_designed_recording_says_the_part_to_fit(tmp_path):

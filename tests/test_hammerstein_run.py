@@ -3,16 +3,14 @@
 import json
 
 import pytest
+from two_valve_recordings import validation_fit
 
-from maskless.analysis.identification.fit_metrics import fit_percent
 from maskless.analysis.identification.model_file import load_identified_model
-from maskless.analysis.identification.records import parse_range
 from maskless.diagrams.cli import main
 from maskless.diagrams.hammerstein_run import (
     MAPS_EXPLAIN_VERDICT,
     format_hammerstein_report,
     hammerstein_verdict,
-    read_two_valve_record,
 )
 from maskless.systems.hammerstein_model import HammersteinModel
 
@@ -23,13 +21,6 @@ def recording(tmp_path_factory):
     argv = ["excite", "--signal", "multilevel", "--valve-drive", "independent"]
     assert main([*argv, "--duration", "600", "--hold", "2:20", "--out", str(out)]) == 0
     return out / "run.mcap"
-
-
-def _judged(recording, model, validation: str) -> float:
-    """The validation simulation fit of ``model`` simulated over the whole recording."""
-    u, y, _ = read_two_valve_record(recording)
-    part = parse_range(validation, y.size, "--validation")
-    return fit_percent(y[part], model.simulate(u)[part])
 
 
 def test_identify_hammerstein_writes_a_model_the_plants_load_and_a_report(
@@ -52,7 +43,7 @@ def test_identify_hammerstein_writes_a_model_the_plants_load_and_a_report(
     # Judged on the validation part (the default 0.6:1) of the whole record's simulation, from
     # rest at its first currents, by the model as its file loads.
     assert entry["validation_simulation_fit_percent"] == pytest.approx(
-        _judged(recording, model, "0.6:1"), abs=1e-6
+        validation_fit(recording, model, "0.6:1"), abs=1e-6
     )
 
 
@@ -117,32 +108,6 @@ def test_identify_hammerstein_reads_the_fields_it_is_given(recording, tmp_path, 
     csv.write_text("1\n2\n")
     assert main([*argv, "--output", str(csv), "--out", str(tmp_path / "three")]) != 0
     assert f"--output {csv}: --method hammerstein reads" in capsys.readouterr().err
-
-
-def test_identify_hammerstein_takes_a_designed_recordings_parts_and_warns_another(
-    designed_excitation, tmp_path, capsys
-):
-    folder, _ = designed_excitation
-    recording = folder / "run.mcap"
-    argv = ["identify", "--input", str(recording), "--ts", "0.0666667", "--method", "hammerstein"]
-    capsys.readouterr()
-    # Before recordings said their split, a fit on another part than the designed one was silent:
-    # on a still patient's advised record it read the inlet's start 7 mA off (issue 14). One
-    # fit (6 s here): the part given is fitted, and warned; the other is the design's.
-    argv += ["--estimation", "0:0.7", "--no-plots", "--out", str(tmp_path / "id"), "--json"]
-    assert main(argv) == 0
-    report = json.loads(capsys.readouterr().out)
-    assert (report["estimation"], report["estimation_from"]) == ("0:0.7", "given")
-    assert (report["validation"], report["validation_from"]) == ("0.8:1", "the recording's design")
-    (entry,) = report["models"]
-    assert entry["warnings"][0].startswith(
-        "--estimation 0:0.7 is not the part this recording was designed to be fitted on (0:0.8: "
-    )
-    # Judged on the design's validation part, by the model as its file loads.
-    model = load_identified_model(entry["model_file"])
-    assert entry["validation_simulation_fit_percent"] == pytest.approx(
-        _judged(recording, model, "0.8:1"), abs=1e-6
-    )
 
 
 def test_the_report_says_where_a_start_came_from_and_the_play_it_found():

@@ -26,6 +26,8 @@ import weakref
 from collections.abc import Callable
 
 _FORK_IS_SAFE = sys.platform.startswith("linux")
+# Calls ``serve_calls_at_once`` runs side by side per usable core (see there).
+_CALLS_PER_CORE = 2
 # How often a waiting worker checks that its parent is still there (s).
 _PARENT_POLL_S = 0.2
 # The exit code of a worker that ended early, stopped or orphaned.
@@ -210,8 +212,10 @@ def serve_calls_at_once(connection, warm_up: Callable[[], None]) -> None:
     """``serve_calls`` for independent calls (plots): each runs at once, in a fork of the worker.
 
     A call is forked from the worker as it arrives, after ``warm_up`` (so every fork starts with
-    what it imported and set up), with as many running at a time as the process may use cores:
-    three plots on two cores end in about two plots' time instead of three. Where no child runs
+    what it imported and set up), with up to two running per core the process may use
+    (``_CALLS_PER_CORE``): calls past the cores share them, so three plots on two cores end in
+    about one and a half plots' time, where one call per core would leave a core idle while the
+    third ran (two plots' time); the cap bounds the forks' memory. Where no child runs
     (``Worker`` without fork), the calls run one after the other, as ``serve_calls`` makes them.
 
     When the worker is stopped or finds its caller gone, the calls still running are killed. A
@@ -226,12 +230,12 @@ def serve_calls_at_once(connection, warm_up: Callable[[], None]) -> None:
         serve_calls(connection, warm_up)
         return
     warm_up()
-    cores = usable_cores()
+    most_at_once = _CALLS_PER_CORE * usable_cores()
     running: dict[int, str] = {}
     failed: list[str] = []
     try:
         while (call := connection.recv()) is not None:
-            if len(running) >= cores:
+            if len(running) >= most_at_once:
                 failed += _reap_one(running)
             function, args, kwargs = call
             pid = os.fork()

@@ -3,7 +3,8 @@
 A command starts it before its own heavy work (the loop, the estimators' imports), so the import
 (about half a second) runs on the second core meanwhile and only the drawing is left at the end.
 The plots it is sent are drawn at once, each in its own fork of the warmed-up worker
-(``serve_calls_at_once``): `maskless identify`'s three take about two plots' time on two cores.
+(``serve_calls_at_once``): `maskless identify`'s three take about one and a half plots' time on
+two cores.
 """
 
 from pathlib import Path

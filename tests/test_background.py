@@ -114,6 +114,13 @@ def meet(mine, other):
     wait_for(other)
 
 
+def meet_all(mine, others):
+    # As ``meet``, with every one of ``others``.
+    mine.write_text("here")
+    for other in others:
+        wait_for(other)
+
+
 def test_calls_served_at_once_run_side_by_side(tmp_path, monkeypatch):
     monkeypatch.setattr(background, "usable_cores", lambda: 2)  # even on a one-core machine
     first, second = tmp_path / "first", tmp_path / "second"
@@ -122,6 +129,39 @@ def test_calls_served_at_once_run_side_by_side(tmp_path, monkeypatch):
     worker.send((meet, (second, first), {}))
     worker.wait()  # one after the other, the first call would time out and fail
     assert first.exists() and second.exists()
+
+
+def test_three_calls_on_two_cores_all_run_at_once(tmp_path, monkeypatch):
+    # `maskless identify`'s three plots: one call per core left the third to run alone after.
+    monkeypatch.setattr(background, "usable_cores", lambda: 2)
+    calls = [tmp_path / f"call{index}" for index in range(3)]
+    worker = Worker("meeting", serve_calls_at_once, lambda: None)
+    for call in calls:
+        worker.send((meet_all, (call, [other for other in calls if other != call]), {}))
+    worker.wait()
+    assert all(call.exists() for call in calls)
+
+
+def announce_and_wait(mine, release):
+    mine.write_text("here")
+    wait_for(release)
+
+
+def test_calls_past_two_a_core_wait_for_one_to_end(tmp_path, monkeypatch):
+    monkeypatch.setattr(background, "usable_cores", lambda: 1)
+    first, second, third = (tmp_path / name for name in ("first", "second", "third"))
+    release = tmp_path / "release"
+    worker = Worker("waiting", serve_calls_at_once, lambda: None)
+    worker.send((announce_and_wait, (first, release), {}))
+    worker.send((announce_and_wait, (second, release), {}))
+    worker.send((write_text, (third, "ran"), {}))
+    wait_for(first)
+    wait_for(second)
+    time.sleep(0.3)  # time enough for the third call to start, were it let
+    assert not third.exists()
+    release.write_text("go")
+    worker.wait()
+    assert third.read_text() == "ran"
 
 
 _WARMED: list[int] = []

@@ -18,11 +18,13 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from maskless.analysis.identification.data_diagnostics import refuse_constant, widest_spread
 from maskless.analysis.identification.fit_metrics import fit_percent
 from maskless.analysis.identification.hammerstein import (
     DESIGNED_RECORD_READING,
     estimate_hammerstein,
     held_out_simulation,
+    minimum_samples,
 )
 from maskless.analysis.identification.model_file import (
     VALVE_NAMES,
@@ -112,6 +114,14 @@ def identify_hammerstein_to_files(
     estimation_part, validation_part = split.estimation_part, split.validation_part
     u_est, y_est = u[estimation_part], y[estimation_part]
     u_val, y_val = u[validation_part], y[validation_part]
+    topic, fields = input_field.rsplit(":", 1)
+    _refuse_unusable_parts(
+        (u_est, y_est, y_val),
+        split,
+        max(orders),
+        [f"{recording} {topic}:{field}" for field in fields.split(",")],
+        f"{output_recording or recording} {output_field}",
+    )
     out = output_folder(out)
     report = {"method": "hammerstein", "recording": str(recording), **split.summary()}
     report["models"] = []
@@ -160,6 +170,46 @@ def identify_hammerstein_to_files(
         report["plot"] = None
     (out / "report.json").write_text(json.dumps(report, indent=1))
     return report
+
+
+def _refuse_unusable_parts(
+    parts, split, order: int, valve_sources: list[str], output_source: str
+) -> None:
+    """A one-line RecordError for parts the fit cannot use, before anything is fitted or written.
+
+    An estimation part too short for the model's parameters, a valve whose current it holds
+    constant (a recording of `maskless excite` on the inlet alone; a closed loop's, where the
+    outlet never opened), or an output constant over either part, where no fit is defined.
+
+    Args:
+        parts: the estimation part's currents (N, 2) and output, and the validation part's output.
+        split: the record's ``FitSplit``.
+        order: the highest order asked for.
+        valve_sources: where each valve's current was read (recording, topic and field).
+        output_source: where the output was read.
+    """
+    u_est, y_est, y_val = parts
+    needed = minimum_samples(order, len(VALVE_NAMES))
+    if y_est.size < needed:
+        raise RecordError(
+            f"the estimation part {split.estimation} ({split.estimation_from}) selects "
+            f"{y_est.size} samples; order {order} with two valves needs at least {needed}"
+        )
+    estimation = f"over the estimation part {split.estimation}"
+    scale = widest_spread(u_est)
+    for valve, currents, source in zip(VALVE_NAMES, u_est.T, valve_sources, strict=True):
+        try:
+            name = f"{valve} valve's current {estimation}"
+            refuse_constant(currents, name, source, "A", scale)
+        except RecordError as error:
+            error.add_note(
+                "--method hammerstein needs both valves driven: record them with maskless excite "
+                "--valve-drive split-range (or independent)"
+            )
+            raise
+    validation = f"over the validation part {split.validation}"
+    for output, part in ((y_est, estimation), (y_val, validation)):
+        refuse_constant(output, f"output {part}", output_source, "m")
 
 
 def hammerstein_verdict(validation_fit: float, linear_fit: float) -> str:

@@ -21,6 +21,7 @@ from maskless.analysis.identification.data_diagnostics import (
     diagnose_record,
     is_constant,
     refuse_constant,
+    widest_spread,
 )
 from maskless.analysis.identification.diagnostics_text import (
     format_diagnostics,
@@ -346,8 +347,10 @@ def identify_signals(
         # The output's unit as for one input (the input's part of _units is not used).
         (_, output_unit), (_, output_origin) = _units(request, ("", units[1]))
         units, unit_origins = (input_units, output_unit), (input_origin, output_origin)
+        # The inputs share a unit when they are the valves' currents: each against the widest.
+        scale = widest_spread(u) if len(set(input_units)) == 1 else 0.0
         for column, name, unit in zip(u.T, names, input_units, strict=True):
-            refuse_constant(column, f"input {name}", sources[0], unit)
+            refuse_constant(column, f"input {name}", sources[0], unit, scale)
         refuse_constant(y, "output", sources[1], output_unit)
     estimation_slice = parse_range(request.estimation, y.size, label("estimation"))
     validation_slice = parse_range(request.validation, y.size, label("validation"))

@@ -166,6 +166,19 @@ def test_a_constant_signal_is_refused_naming_it_and_its_source():
     dd.refuse_constant(0.3 + 1e-6 * np.arange(SAMPLES), "output", "temp.csv")  # varies: fine
 
 
+def test_a_signal_varying_by_rounding_of_its_companions_spread_is_constant():
+    # A closed loop's outlet: never opened, but for one sample of 1.4e-17 A (rounding of a
+    # difference of currents), while the inlet spans 53 mA. Against its own size it varies by
+    # all of it; against the inlet's spread, by nothing.
+    outlet = np.zeros(SAMPLES)
+    outlet[0] = 1.4e-17
+    assert not dd.is_constant(outlet)
+    assert dd.is_constant(outlet, scale=0.053)
+    assert not dd.is_constant(1e-6 * np.arange(SAMPLES), scale=0.053)  # a micro-amp ramp moves
+    with pytest.raises(RecordError, match=r"^run\.mcap: the outlet is constant"):
+        dd.refuse_constant(outlet, "outlet", "run.mcap", "A", scale=0.053)
+
+
 def test_a_clean_record_raises_no_warning():
     u, y = clean_record()
     run = maskless.identify(u, y, TS, order=2)

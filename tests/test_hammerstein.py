@@ -23,6 +23,7 @@ from maskless.analysis.identification.hammerstein import (
     estimate_hammerstein,
     estimate_linear_arx,
     held_out_simulation,
+    minimum_samples,
     search_cost_tolerance,
 )
 from maskless.analysis.identification.settled_curve import settled_levels
@@ -305,6 +306,19 @@ def test_bad_arguments_are_one_line_naming_the_argument(change, message):
         arguments["y"] = y[: arguments["u"].shape[0]]
     with pytest.raises(ValueError, match=message):
         estimate_hammerstein(**arguments)
+
+
+def test_a_valve_never_opened_but_for_rounding_is_refused_as_constant():
+    # A closed loop's record: its outlet at 0 A but for one sample of 1.4e-17 A. Before, that
+    # sample passed for variation and the fit made up the outlet's map.
+    u, y = _planted_record(1000)
+    u[:, 1] = 0.0
+    u[0, 1] = 1.4e-17
+    with pytest.raises(ValueError, match="u column 1 is constant"):
+        estimate_hammerstein(u, y, 2, TS)
+    # Too few samples for the parameters, with the count it takes.
+    with pytest.raises(ValueError, match=f"at least {minimum_samples(2, 2)} "):
+        estimate_hammerstein(u[:100], y[:100], 2, TS)
 
 
 def test_the_model_simulates_as_its_state_space_and_settles_at_its_static_curve():

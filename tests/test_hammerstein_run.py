@@ -5,7 +5,9 @@ import json
 import pytest
 from two_valve_recordings import validation_fit
 
+from maskless.analysis.identification.hammerstein import minimum_samples
 from maskless.analysis.identification.model_file import load_identified_model
+from maskless.diagrams import hammerstein_run
 from maskless.diagrams.cli import main
 from maskless.diagrams.hammerstein_run import (
     MAPS_EXPLAIN_VERDICT,
@@ -85,6 +87,51 @@ def test_identify_hammerstein_refuses_a_flag_it_would_ignore(typed, flag, tmp_pa
     assert main([*argv, "--out", str(tmp_path / "id")]) != 0
     error = capsys.readouterr().err.strip()
     assert f"{flag}: not used by --method hammerstein" in error and "\n" not in error
+
+
+def _refusal(argv, capsys) -> str:
+    """The one line a refused `maskless identify` prints (exit code 2)."""
+    capsys.readouterr()
+    assert main(argv) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    return line
+
+
+def test_identify_hammerstein_refuses_a_recording_of_the_inlet_alone(tmp_path, capsys):
+    # `maskless excite` drives the inlet only unless told otherwise; before, the fit ended in a
+    # ValueError traceback.
+    excite = tmp_path / "inlet"
+    assert main(["excite", "--signal", "multilevel", "--duration", "60", "--out", str(excite)]) == 0
+    out = tmp_path / "id"
+    argv = ["identify", "--input", str(excite / "run.mcap"), "--ts", "0.0666667"]
+    line = _refusal([*argv, "--method", "hammerstein", "--out", str(out)], capsys)
+    assert line.startswith(
+        f"maskless identify: error: {excite / 'run.mcap'} /controller/command:"
+        "outlet_valve_current_a: the outlet valve's current over the estimation part 0:0.6 is "
+        "constant (0 A over all "
+    )
+    assert line.endswith("maskless excite --valve-drive split-range (or independent)")
+    assert not out.exists()
+
+
+def test_identify_hammerstein_refuses_parts_it_cannot_fit(recording, tmp_path, capsys, monkeypatch):
+    argv = ["identify", "--input", str(recording), "--ts", "0.0666667", "--method", "hammerstein"]
+    argv += ["--out", str(tmp_path / "id")]
+    # Too short for order 2's parameters: before, a ValueError traceback.
+    line = _refusal([*argv, "--estimation", "0:100", "--validation", "100:400"], capsys)
+    assert line.endswith(
+        f"the estimation part 0:100 (given) selects 100 samples; order 2 with two valves needs "
+        f"at least {minimum_samples(2, 2)}"
+    )
+    # A head that stops moving over the validation part (say the cameras lost it and the
+    # fusion held its last estimate): no fit is defined there.
+    u, y, period_s = hammerstein_run.read_two_valve_record(recording)
+    held = y.copy()
+    held[y.size // 2 :] = y[y.size // 2]
+    monkeypatch.setattr(hammerstein_run, "read_two_valve_record", lambda *_: (u, held, period_s))
+    line = _refusal(argv, capsys)
+    assert "/fusion/estimate:head_height_m: the output over the validation part 0.6:1 is " in line
+    assert not (tmp_path / "id").exists()
 
 
 def test_identify_hammerstein_reads_the_fields_it_is_given(recording, tmp_path, capsys):

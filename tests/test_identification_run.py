@@ -467,6 +467,22 @@ def test_two_input_columns_of_a_csv_give_a_two_input_model(tmp_path, capsys):
     assert "--input-unit 'mA,mA,mA': expected one unit for all 2 inputs" in capsys.readouterr().err
 
 
+def test_an_input_varying_by_rounding_of_the_others_spread_is_refused(tmp_path, capsys):
+    # The outlet of a closed loop's record: never opened, but for one sample of 1.4e-17 (rounding
+    # of a difference of currents). Before, that sample passed for variation and the fit gave the
+    # outlet a gain.
+    u, y = simulate_two_inputs(3000, seed=5)
+    u[:, 1] = 0.0
+    u[0, 1] = 1.4e-17
+    table = tmp_path / "record.csv"
+    np.savetxt(table, np.column_stack([u, y]), delimiter=",", header="inlet,outlet,y", comments="")
+    flags = ["--input", str(table), "--output", str(table), "--output-column", "y", "--ts", "1"]
+    flags += ["--input-column", "inlet,outlet", "--out", str(tmp_path / "id")]
+    assert main(["identify", *flags]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert f"{table} column inlet,outlet: the input outlet is constant (1.4e-17 " in line
+
+
 def test_a_refused_record_leaves_no_plotting_worker_behind(tmp_path, capsys):
     # The command forks its plotting worker before it reads a byte; a record refused after that
     # stops it, so nothing outlives the command.

@@ -253,16 +253,29 @@ def format_pole(pole: tuple[float, float]) -> str:
     return f"{pole[0]:.6g}" if pole[1] == 0 else f"{complex(*pole):.6g}"
 
 
-def is_constant(signal: np.ndarray) -> bool:
-    """Whether ``signal`` varies by less than ``CONSTANT_RELATIVE_SPREAD`` of its magnitude.
+def is_constant(signal: np.ndarray, scale: float = 0.0) -> bool:
+    """Whether ``signal`` varies by less than ``CONSTANT_RELATIVE_SPREAD`` of its size or scale.
+
+    Its size is its largest magnitude.
 
     Args:
         signal: the samples (any unit), at least one.
+        scale: the spread of the signals it shares a unit with (the other valve's current), if
+            any. A valve never opened but for one rounding error (1e-17 A in a closed loop's
+            record) varies by all of its own magnitude, and by nothing of the other's.
     """
-    return bool(np.ptp(signal) <= CONSTANT_RELATIVE_SPREAD * np.max(np.abs(signal)))
+    reference = max(float(np.max(np.abs(signal))), scale)
+    return bool(np.ptp(signal) <= CONSTANT_RELATIVE_SPREAD * reference)
 
 
-def refuse_constant(signal: np.ndarray, name: str, source: str, unit: str = "") -> None:
+def widest_spread(u: np.ndarray) -> float:
+    """The largest spread of the columns of ``u`` (N, inputs): ``is_constant``'s ``scale``."""
+    return float(np.max(np.ptp(u, axis=0)))
+
+
+def refuse_constant(
+    signal: np.ndarray, name: str, source: str, unit: str = "", scale: float = 0.0
+) -> None:
     """A one-line RecordError naming ``name`` ("input", "output") and ``source`` if it is constant.
 
     Args:
@@ -270,8 +283,9 @@ def refuse_constant(signal: np.ndarray, name: str, source: str, unit: str = "") 
         name: which signal it is.
         source: where it came from (a file, TOPIC:FIELD, or the argument's name).
         unit: its unit, as given ("" when not given).
+        scale: as ``is_constant`` takes it.
     """
-    if is_constant(signal):
+    if is_constant(signal, scale):
         raise RecordError(
             f"{source}: the {name} is constant ({_with_unit(signal[0], unit)} over all "
             f"{signal.size} samples, "

@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.optimize
 
+from maskless.analysis.identification.data_diagnostics import is_constant, widest_spread
 from maskless.analysis.identification.fit_metrics import fit_percent
 from maskless.analysis.identification.hammerstein_problem import (
     MAX_SATURATION,
@@ -91,6 +92,8 @@ _SATURATED_REFLECTION = 1.0 - 1e-6
 # (``diagrams.valve_level_experiment``) and ``maskless identify --method hammerstein`` both read
 # so, so the design sees what the final fit will.
 DESIGNED_RECORD_READING = {"read_sections": True, "settle_by_holds": True}
+# Linear pieces of each valve's map between its starting and saturation current, by default.
+MAP_SEGMENTS = 6
 
 
 @dataclass(frozen=True)
@@ -237,7 +240,7 @@ def estimate_hammerstein(
     order: int,
     sample_period_s: float,
     *,
-    map_segments: int = 6,
+    map_segments: int = MAP_SEGMENTS,
     input_delay_samples: int = 1,
     linear: bool = False,
     input_unit: str = "",
@@ -710,6 +713,11 @@ def _fit(problem, theta, start, converged, message, evaluations, sample_period_s
     )
 
 
+def minimum_samples(order: int, inputs: int, map_segments: int = MAP_SEGMENTS) -> int:
+    """The fewest samples ``estimate_hammerstein`` takes: 10 per parameter (A, each B and map)."""
+    return 10 * (order + inputs * (order + map_segments + 1) + 1)
+
+
 def _checked_record(u, y, order, segments, delay, sample_period_s):
     """(u (N, inputs), y (N,)) as floats, or a ValueError naming what is wrong."""
     u, y = np.asarray(u, dtype=float), np.asarray(y, dtype=float)
@@ -730,12 +738,14 @@ def _checked_record(u, y, order, segments, delay, sample_period_s):
             raise ValueError(f"{name} = {value!r}: expected an integer >= 1")
     if not (isinstance(sample_period_s, int | float) and sample_period_s > 0):
         raise ValueError(f"sample_period_s = {sample_period_s!r}: expected a positive number")
-    parameters = order + u.shape[1] * (order + segments + 1) + 1
-    if y.size < 10 * parameters:
-        raise ValueError(f"{y.size} samples are too few for {parameters} parameters (10 each)")
-    if np.ptp(y) == 0.0:
+    needed = minimum_samples(order, u.shape[1], segments)
+    if y.size < needed:
+        raise ValueError(f"{y.size} samples are too few: at least {needed} (10 per parameter)")
+    if is_constant(y):
         raise ValueError("y is constant: there is nothing to identify")
-    constant = [i for i in range(u.shape[1]) if np.ptp(u[:, i]) == 0.0]
+    # The currents share a unit: one varying by no more than rounding of the other's is constant.
+    scale = widest_spread(u)
+    constant = [i for i in range(u.shape[1]) if is_constant(u[:, i], scale)]
     if constant:
         raise ValueError(f"u column {constant[0]} is constant: its map cannot be identified")
     return u, y

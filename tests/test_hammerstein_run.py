@@ -89,6 +89,17 @@ def test_identify_hammerstein_refuses_a_flag_it_would_ignore(typed, flag, tmp_pa
     assert f"{flag}: not used by --method hammerstein" in error and "\n" not in error
 
 
+@pytest.mark.parametrize("method", ["hammerstein", "pem"])
+@pytest.mark.parametrize("orders", ["0", "2,-1", "two"])
+def test_orders_that_are_not_positive_integers_are_refused_in_one_line(
+    method, orders, tmp_path, capsys
+):
+    # Before, --method hammerstein passed order 0 to the fit: a ValueError traceback.
+    argv = ["identify", "--input", "run.mcap", "--ts", "0.1", "--method", method]
+    line = _refusal([*argv, "--orders", orders, "--out", str(tmp_path / "id")], capsys)
+    assert line.endswith(f"--orders {orders!r}: expected positive integers, e.g. 2,4")
+
+
 def _refusal(argv, capsys) -> str:
     """The one line a refused `maskless identify` prints (exit code 2)."""
     capsys.readouterr()

@@ -152,11 +152,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def parse_orders(text: str) -> list[int]:
-    """``--orders 2,4`` as a list of integers."""
+    """``--orders 2,4`` as a list of positive integers."""
     try:
-        return [int(part) for part in text.split(",")]
+        orders = [int(part) for part in text.split(",")]
     except ValueError:
-        raise ConfigError(f"--orders {text!r}: expected positive integers, e.g. 2,4") from None
+        orders = []
+    if not orders or min(orders) < 1:
+        raise ConfigError(f"--orders {text!r}: expected positive integers, e.g. 2,4")
+    return orders
 
 
 def identification_request(args: argparse.Namespace) -> IdentificationRequest:

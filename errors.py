@@ -1,5 +1,7 @@
 """The errors maskless reports to a user: one family, so a caller can tell a bad input from a bug.
 
+And its one warning: a recording cut off, read up to the cut.
+
 The caller may be the CLI or a script.
 
 Every error here names what was wrong (the file, the field, the flag or the argument) and what was
@@ -31,3 +33,7 @@ class MissingFileError(MasklessError, FileNotFoundError):
 
 class SweepError(MasklessError, RuntimeError):
     """A population sweep could not finish (a worker died); what it finished is kept."""
+
+
+class TruncatedRecordingWarning(RuntimeWarning):
+    """A recording ended or broke before its footer; only a prefix of it was read."""

@@ -33,6 +33,7 @@ from maskless.analysis.identification.model_file import (
 )
 from maskless.analysis.identification.records import (
     VALVE_CURRENTS_FIELDS,
+    cut_recording_notes,
     read_aligned_mcap,
 )
 from maskless.analysis.identification.report import EXPLAINS_SIM
@@ -106,7 +107,10 @@ def identify_hammerstein_to_files(
         RecordError: a recording that cannot be read as two valves and an output, a --ts more
             than 1 % off its sample period, or parts out of range.
     """
-    u, y, period_s = read_two_valve_record(recording, input_field, output_recording, output_field)
+    with cut_recording_notes() as cut:
+        u, y, period_s = read_two_valve_record(
+            recording, input_field, output_recording, output_field
+        )
     if abs(period_s - ts) > 0.01 * period_s:
         raise RecordError(f"--ts {ts}: the recording's samples are {period_s:.6g} s apart")
     designed = read_leading_metadata(recording).get(FIT_SPLIT_METADATA)
@@ -150,7 +154,7 @@ def identify_hammerstein_to_files(
         model_from_contents(contents, str(path))  # never write a file the loader refuses
         path.write_text(yaml.safe_dump(contents, sort_keys=False))
         summary = fit.summary(VALVE_NAMES)
-        summary["warnings"] = [*split.warnings, *summary["warnings"]]
+        summary["warnings"] = [*cut, *split.warnings, *summary["warnings"]]
         entry = {
             **summary,
             "order": order,

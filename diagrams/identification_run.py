@@ -36,6 +36,7 @@ from maskless.analysis.identification.model_file import (
 )
 from maskless.analysis.identification.records import (
     Detrended,
+    cut_recording_notes,
     detrend,
     parse_range,
     read_aligned_mcap,
@@ -283,8 +284,11 @@ def identify_record(request: IdentificationRequest) -> "IdentificationRun":
     """
     if request.input is None:
         raise RecordError(f"{request.label('input')}: expected the record to read")
-    u, y, units = read_record(request)
-    return identify_signals(u, y, request, units)
+    with cut_recording_notes() as cut:
+        u, y, units = read_record(request)
+    identified = identify_signals(u, y, request, units)
+    identified.report["warnings"][:0] = cut
+    return identified
 
 
 def identify(

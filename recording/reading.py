@@ -24,7 +24,7 @@ from mcap.records import Schema as McapSchema
 from mcap.stream_reader import StreamReader
 
 from maskless.camera_images import CameraFrame, camera_of_topic, frame_from_messages, image_topic
-from maskless.errors import MissingFileError, RecordError
+from maskless.errors import MissingFileError, RecordError, TruncatedRecordingWarning
 from maskless.recording.format import (
     _BOOLEAN,
     _SCHEMA_NAME,
@@ -102,10 +102,6 @@ def _field_layout(topic: str, field: str) -> tuple[type | None, tuple[int, ...]]
     if prop["type"] == "array":
         return np.float64, (2, 2)
     return np.float64, ()
-
-
-class TruncatedRecordingWarning(RuntimeWarning):
-    """A recording ended or broke before its footer; only a prefix of it was read."""
 
 
 class _StrictBytesIO(io.BytesIO):

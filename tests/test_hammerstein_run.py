@@ -145,6 +145,27 @@ def test_identify_hammerstein_refuses_parts_it_cannot_fit(recording, tmp_path, c
     assert not (tmp_path / "id").exists()
 
 
+@pytest.mark.parametrize("method", ["hammerstein", "pem"])
+def test_a_cut_off_recording_is_identified_up_to_the_cut_and_reported_so(
+    method, recording, tmp_path, capsys
+):
+    # Before, only a Python warning on stderr said so; the report and its JSON did not.
+    cut = tmp_path / "cut.mcap"
+    whole = recording.read_bytes()
+    cut.write_bytes(whole[: len(whole) // 2])
+    # PEM reads the recording's inlet alone, the linear methods' default.
+    argv = ["identify", "--input", str(cut), "--ts", "0.0666667", "--method", method]
+    capsys.readouterr()
+    assert main([*argv, "--no-plots", "--out", str(tmp_path / "id"), "--json"]) == 0
+    captured = capsys.readouterr()
+    report = json.loads(captured.out)
+    # A Hammerstein report's warnings are its model's; a linear report's, the record's.
+    warnings = report["models"][0]["warnings"] if method == "hammerstein" else report["warnings"]
+    assert warnings[0].startswith(f"{cut}: recording is truncated or corrupt")
+    assert warnings[0].endswith(": identified from what it held before the cut")
+    assert "TruncatedRecordingWarning" not in captured.err
+
+
 def test_identify_hammerstein_reads_the_fields_it_is_given(recording, tmp_path, capsys):
     # The valves named the other way round: the "inlet" of the fit is the outlet, which lowers
     # the head, so its curve's full value is negative.

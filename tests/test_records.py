@@ -1,18 +1,21 @@
 """CSV and MCAP records, part ranges and detrending, with errors naming the file, line and flag."""
 
+import warnings
+
 import numpy as np
 import pytest
 from version1_recording import write_version1_recording
 
 from maskless.analysis.identification.records import (
     VALVE_CURRENTS_FIELDS,
+    cut_recording_notes,
     detrend,
     parse_range,
     read_aligned_mcap,
     read_csv_signal,
     read_mcap_signals,
 )
-from maskless.errors import RecordError
+from maskless.errors import RecordError, TruncatedRecordingWarning
 from maskless.recording import Channel, write_recording
 
 
@@ -188,3 +191,11 @@ def test_aligned_signals_with_a_gap_are_refused_naming_where(tmp_path):
             currents_path,
             VALVE_CURRENTS_FIELDS,
         )
+
+
+def test_cut_recording_notes_keep_the_cut_and_pass_other_warnings():
+    with pytest.warns(UserWarning, match="something else"):
+        with cut_recording_notes() as notes:
+            warnings.warn("run.mcap: cut", TruncatedRecordingWarning, stacklevel=1)
+            warnings.warn("something else", UserWarning, stacklevel=1)
+    assert notes == ["run.mcap: cut: identified from what it held before the cut"]

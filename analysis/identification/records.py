@@ -4,14 +4,17 @@ Every error names the file and, for CSV, the line: a record with text, NaN, no v
 output of different lengths is refused before any fitting starts.
 """
 
+import contextlib
 import csv
 import math
+import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from maskless.errors import MissingFileError, RecordError
+from maskless.errors import MissingFileError, RecordError, TruncatedRecordingWarning
 from maskless.recording import current_name
 
 
@@ -142,6 +145,28 @@ def read_mcap_signals(
         values = columns[0][1] if len(columns) == 1 else np.column_stack([v for _, v in columns])
         signals.append((times, values))
     return signals
+
+
+@contextlib.contextmanager
+def cut_recording_notes() -> Iterator[list[str]]:
+    """The list, filled as the block ends, of sentences naming the cut-off recordings read in it.
+
+    A cut-off recording reads up to its cut with a ``TruncatedRecordingWarning``
+    (``read_recording``). In this block the warning becomes a sentence for the report's warnings,
+    where a script reading its JSON sees it too, instead of a line on stderr. Other warnings pass
+    as they would have.
+    """
+    notes: list[str] = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", TruncatedRecordingWarning)
+        yield notes
+    for warning in caught:
+        if issubclass(warning.category, TruncatedRecordingWarning):
+            notes.append(f"{warning.message}: identified from what it held before the cut")
+        else:
+            warnings.warn_explicit(
+                warning.message, warning.category, warning.filename, warning.lineno
+            )
 
 
 def read_aligned_mcap(

@@ -11,7 +11,11 @@ given that differs from it is warned.
 
 from dataclasses import dataclass
 
-from maskless.analysis.identification.records import parse_range
+from maskless.analysis.identification.records import (
+    OVERLAPPING_PARTS_WARNING,
+    parse_range,
+    parts_overlap,
+)
 
 DEFAULT_ESTIMATION = "0:0.6"
 DEFAULT_VALIDATION = "0.6:1"
@@ -33,7 +37,8 @@ class FitSplit:
         estimation, validation: the parts, as `maskless identify` takes them.
         estimation_from, validation_from: ``GIVEN``, ``DESIGNED`` or ``DEFAULT``.
         estimation_part, validation_part: the parts as slices of the record.
-        warnings: a sentence for an estimation part given that is not the recording's design's.
+        warnings: a sentence for an estimation part given that is not the recording's design's,
+            and one for parts that overlap.
     """
 
     estimation: str
@@ -102,4 +107,6 @@ def fit_split(
             "other levels than the design chose; leave --estimation out to fit the designed "
             "part",
         )
+    if parts_overlap(*parts):
+        warnings += (OVERLAPPING_PARTS_WARNING,)
     return FitSplit(*texts, *sources, *parts, warnings)

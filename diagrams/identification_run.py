@@ -39,6 +39,7 @@ from maskless.analysis.identification.records import (
     cut_recording_notes,
     detrend,
     parse_range,
+    parts_overlap,
     read_aligned_mcap,
     read_csv_signal,
 )
@@ -380,9 +381,7 @@ def identify_signals(
         Part("estimation", offsets.u[estimation_slice], offsets.y[estimation_slice]),
         Part("validation", offsets.u[validation_slice], offsets.y[validation_slice]),
     ]
-    overlap = max(estimation_slice.start, validation_slice.start) < min(
-        estimation_slice.stop, validation_slice.stop
-    )
+    overlap = parts_overlap(estimation_slice, validation_slice)
 
     def report_progress(evaluations, cost):
         print(f"fitting: {evaluations} evaluations, cost {cost:.6g}", file=sys.stderr, flush=True)

@@ -6,6 +6,7 @@ recording was designed for.
 
 import pytest
 
+from maskless.analysis.identification.records import OVERLAPPING_PARTS_WARNING
 from maskless.diagrams.fit_split import (
     DEFAULT,
     DEFAULT_ESTIMATION,
@@ -29,6 +30,17 @@ def test_a_recording_without_a_design_is_split_as_given_or_by_default():
     assert split.warnings == ()
 
 
+@pytest.mark.parametrize(
+    "estimation, validation, overlap",
+    [("0:0.8", "0:1", True), ("0:0.6", "0.59:1", True), ("0:600", "600:1000", False)],
+)
+def test_parts_that_share_samples_are_warned_not_a_holdout(estimation, validation, overlap):
+    # Before, --method hammerstein judged overlapping parts unwarned ("the valve maps explain 26.1
+    # points ... more" on a validation part holding the estimation part); the linear methods warned.
+    split = fit_split(None, estimation, validation, 1000)
+    assert (OVERLAPPING_PARTS_WARNING in split.warnings) == overlap
+
+
 def test_a_designed_recording_gives_the_parts_not_given():
     split = fit_split(DESIGNED_PARTS, None, None, 1000)
     assert split.summary() == {
@@ -50,8 +62,10 @@ def test_a_designed_recording_gives_the_parts_not_given():
 
 @pytest.mark.parametrize("given", ["0:0.6", "0:0.9", "0.1:0.8", "0:799"])
 def test_fitting_another_part_than_the_designed_one_is_warned(given):
-    (warning,) = fit_split(DESIGNED_PARTS, given, None, 1000).warnings
+    warning, *others = fit_split(DESIGNED_PARTS, given, None, 1000).warnings
     assert warning.startswith(f"--estimation {given} is not the part this recording was designed")
+    # 0:0.9 reaches into the design's validation part 0.8:1.
+    assert others == ([OVERLAPPING_PARTS_WARNING] if given == "0:0.9" else [])
     assert "(0:0.8: " in warning and "leave --estimation out" in warning
 
 

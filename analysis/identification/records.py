@@ -223,6 +223,18 @@ def _field_values(path, recording, topic: str, field: str) -> tuple[np.ndarray, 
     return times, values
 
 
+# Said of a validation part that shares samples with the estimation part.
+OVERLAPPING_PARTS_WARNING = (
+    "the validation part overlaps the estimation part: its figures are not a holdout and flatter "
+    "the models"
+)
+
+
+def parts_overlap(first: slice, second: slice) -> bool:
+    """Whether two parts of a record (slices with a start and a stop) share a sample."""
+    return max(first.start, second.start) < min(first.stop, second.stop)
+
+
 def parse_range(text: str, samples: int, what: str) -> slice:
     """A part of a record from "START:STOP": fractions (0:0.6) or sample indices (0:11782).
 

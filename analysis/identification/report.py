@@ -35,6 +35,7 @@ from maskless.analysis.identification.prediction_error import (
     estimate_pem,
     parameter_count,
 )
+from maskless.analysis.identification.records import OVERLAPPING_PARTS_WARNING
 from maskless.analysis.identification.subspace import HORIZON_RULE, estimate_n4sid
 from maskless.errors import ModelError
 from maskless.systems.linear_model import LinearModel, stable
@@ -477,10 +478,7 @@ def identify(
     )
     warnings = []
     if overlap:
-        warnings.append(
-            "the validation part overlaps the estimation part: its figures are not a holdout "
-            "and flatter the models"
-        )
+        warnings.append(OVERLAPPING_PARTS_WARNING)
     warnings += [entry["warning"] for entry in entries if "warning" in entry]
     # Data diagnostics (issue 14): the excitation, the fitted poles near 1, the record's own.
     poles_by_order = {m.order: m.linear_models[0].poles() for m in fitted_models}

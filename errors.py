@@ -1,13 +1,13 @@
 """The errors maskless reports to a user: one family, so a caller can tell a bad input from a bug.
 
-And its one warning: a recording cut off, read up to the cut.
-
 The caller may be the CLI or a script.
 
 Every error here names what was wrong (the file, the field, the flag or the argument) and what was
 expected. Each also subclasses the built-in error a Python caller would expect (ValueError,
 FileNotFoundError), so ``except ValueError`` keeps working. Anything else that escapes the library
 is a bug and keeps its traceback.
+
+And its one warning: a recording cut off, read up to the cut (``TruncatedRecordingWarning``).
 """
 
 

@@ -33,7 +33,8 @@ from maskless.analysis.identification.model_file import (
 )
 from maskless.analysis.identification.records import (
     VALVE_CURRENTS_FIELDS,
-    cut_recording_notes,
+    identified_before_the_cut,
+    noted_on_refusal,
     read_aligned_mcap,
 )
 from maskless.analysis.identification.report import EXPLAINS_SIM
@@ -55,6 +56,7 @@ def read_two_valve_record(
     input_field: str = VALVE_CURRENTS_FIELDS,
     output_recording: Path | None = None,
     output_field: str = DEFAULT_MCAP_OUTPUT,
+    cut_notes: list[str] | None = None,
 ):
     """(currents (N, 2) in A, output (N,), its period in s) from maskless recordings.
 
@@ -63,6 +65,7 @@ def read_two_valve_record(
         input_field: "TOPIC:FIELD,FIELD", the inlet's and the outlet's current in that order.
         output_recording: the MCAP recording of the output (default: ``recording``).
         output_field: "TOPIC:FIELD" of the output (m).
+        cut_notes: as ``records.read_mcap_signals`` takes it.
 
     Raises:
         RecordError: not an MCAP recording, an input that is not two fields, or currents and
@@ -75,7 +78,9 @@ def read_two_valve_record(
                 f"{flag} {path}: --method hammerstein reads a maskless MCAP recording (both "
                 "valves' currents and the head height)"
             )
-    u, y, period_s = read_aligned_mcap(recording, input_field, output_recording, output_field)
+    u, y, period_s = read_aligned_mcap(
+        recording, input_field, output_recording, output_field, cut_notes
+    )
     if u.ndim != 2 or u.shape[1] != len(VALVE_NAMES):
         raise RecordError(
             f"--input-column {input_field!r}: expected TOPIC:FIELD,FIELD, the inlet's and the "
@@ -100,32 +105,28 @@ def identify_hammerstein_to_files(
 
     The record is read as ``read_two_valve_record`` reads it. A part not given (None) is the
     recording's design's, else the default (``fit_split``); the report holds both parts and where
-    each came from, and each model's warnings begin with the split's. With ``plots`` False no
-    plot is drawn, and an earlier run's in ``out`` is removed (it would read as this run's).
+    each came from, and each model's warnings begin with a cut-off recording's, then the
+    split's. With ``plots`` False no plot is drawn, and an earlier run's in ``out`` is removed (it
+    would read as this run's).
 
     Raises:
         RecordError: a recording that cannot be read as two valves and an output, a --ts more
-            than 1 % off its sample period, or parts out of range.
+            than 1 % off its sample period, parts out of range or parts the fit cannot use
+            (``_refuse_unusable_parts``); it says a cut-off recording too.
     """
-    with cut_recording_notes() as cut:
-        u, y, period_s = read_two_valve_record(
-            recording, input_field, output_recording, output_field
+    cut: list[str] = []
+    with noted_on_refusal(cut):
+        u, y, split = _usable_record(
+            (recording, input_field, output_recording, output_field),
+            ts,
+            max(orders),
+            (estimation, validation),
+            cut,
         )
-    if abs(period_s - ts) > 0.01 * period_s:
-        raise RecordError(f"--ts {ts}: the recording's samples are {period_s:.6g} s apart")
-    designed = read_leading_metadata(recording).get(FIT_SPLIT_METADATA)
-    split = fit_split(designed, estimation, validation, y.size)
+    record_warnings = identified_before_the_cut(cut)
     estimation_part, validation_part = split.estimation_part, split.validation_part
     u_est, y_est = u[estimation_part], y[estimation_part]
     u_val, y_val = u[validation_part], y[validation_part]
-    topic, fields = input_field.rsplit(":", 1)
-    _refuse_unusable_parts(
-        (u_est, y_est, y_val),
-        split,
-        max(orders),
-        [f"{recording} {topic}:{field}" for field in fields.split(",")],
-        f"{output_recording or recording} {output_field}",
-    )
     out = output_folder(out)
     report = {"method": "hammerstein", "recording": str(recording), **split.summary()}
     report["models"] = []
@@ -154,7 +155,7 @@ def identify_hammerstein_to_files(
         model_from_contents(contents, str(path))  # never write a file the loader refuses
         path.write_text(yaml.safe_dump(contents, sort_keys=False))
         summary = fit.summary(VALVE_NAMES)
-        summary["warnings"] = [*cut, *split.warnings, *summary["warnings"]]
+        summary["warnings"] = [*record_warnings, *split.warnings, *summary["warnings"]]
         entry = {
             **summary,
             "order": order,
@@ -174,6 +175,34 @@ def identify_hammerstein_to_files(
         report["plot"] = None
     (out / "report.json").write_text(json.dumps(report, indent=1))
     return report
+
+
+def _usable_record(fields, ts: float, order: int, parts, cut_notes: list[str]):
+    """(currents (N, 2), output (N,), ``FitSplit``) of the record, or a one-line refusal.
+
+    Args:
+        fields: the recording, its currents' "TOPIC:INLET,OUTLET", the output's recording (None:
+            the same) and "TOPIC:FIELD", as ``read_two_valve_record`` takes them.
+        ts: the sample period asked for (s): refused more than 1 % off the recording's.
+        order: the highest order asked for.
+        parts: the estimation and validation parts given (None: not given; see ``fit_split``).
+        cut_notes: as ``records.read_mcap_signals`` takes it.
+    """
+    recording, input_field, output_recording, output_field = fields
+    u, y, period_s = read_two_valve_record(*fields, cut_notes=cut_notes)
+    if abs(period_s - ts) > 0.01 * period_s:
+        raise RecordError(f"--ts {ts}: the recording's samples are {period_s:.6g} s apart")
+    designed = read_leading_metadata(recording).get(FIT_SPLIT_METADATA)
+    split = fit_split(designed, *parts, y.size)
+    topic, currents = input_field.rsplit(":", 1)
+    _refuse_unusable_parts(
+        (u[split.estimation_part], y[split.estimation_part], y[split.validation_part]),
+        split,
+        order,
+        [f"{recording} {topic}:{current}" for current in currents.split(",")],
+        f"{output_recording or recording} {output_field}",
+    )
+    return u, y, split
 
 
 def _refuse_unusable_parts(
@@ -202,8 +231,8 @@ def _refuse_unusable_parts(
     estimation = f"over the estimation part {split.estimation}"
     scale = widest_spread(u_est)
     for valve, currents, source in zip(VALVE_NAMES, u_est.T, valve_sources, strict=True):
+        name = f"{valve} valve's current {estimation}"
         try:
-            name = f"{valve} valve's current {estimation}"
             refuse_constant(currents, name, source, "A", scale)
         except RecordError as error:
             error.add_note(

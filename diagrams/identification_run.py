@@ -36,8 +36,9 @@ from maskless.analysis.identification.model_file import (
 )
 from maskless.analysis.identification.records import (
     Detrended,
-    cut_recording_notes,
     detrend,
+    identified_before_the_cut,
+    noted_on_refusal,
     parse_range,
     parts_overlap,
     read_aligned_mcap,
@@ -134,18 +135,21 @@ def _field_unit(topic_and_field: str) -> str:
 
 
 def read_record(
-    request: IdentificationRequest,
+    request: IdentificationRequest, cut_notes: list[str] | None = None
 ) -> tuple[np.ndarray, np.ndarray, tuple[str | None, str | None]]:
     """The input and output records and their units (None: a CSV, which carries none).
 
-    Records that cannot be used are refused with the file named.
+    Records that cannot be used are refused with the file named. ``cut_notes``: as
+    ``records.read_mcap_signals`` takes it.
     """
     label = request.label
     output_path = request.output or request.input
     if request.input.suffix == ".mcap" or output_path.suffix == ".mcap":
         input_field = request.input_column or DEFAULT_MCAP_INPUT
         output_field = request.output_column or DEFAULT_MCAP_OUTPUT
-        u, y, period_s = read_aligned_mcap(request.input, input_field, output_path, output_field)
+        u, y, period_s = read_aligned_mcap(
+            request.input, input_field, output_path, output_field, cut_notes
+        )
         if abs(period_s - request.ts) > _TS_TOLERANCE * period_s:
             raise RecordError(
                 f"{label('ts')} {request.ts}: the recording's samples are {period_s:.6g} s apart"
@@ -285,11 +289,10 @@ def identify_record(request: IdentificationRequest) -> "IdentificationRun":
     """
     if request.input is None:
         raise RecordError(f"{request.label('input')}: expected the record to read")
-    with cut_recording_notes() as cut:
-        u, y, units = read_record(request)
-    identified = identify_signals(u, y, request, units)
-    identified.report["warnings"][:0] = cut
-    return identified
+    cut: list[str] = []
+    with noted_on_refusal(cut):
+        u, y, units = read_record(request, cut)
+        return identify_signals(u, y, request, units, identified_before_the_cut(cut))
 
 
 def identify(
@@ -331,10 +334,12 @@ def identify_signals(
     y: np.ndarray,
     request: IdentificationRequest,
     units: tuple[str | None, str | None],
+    record_warnings: tuple[str, ...] = (),
 ) -> "IdentificationRun":
     """``identify_record`` on signals already read.
 
     ``units``: as read, before the request's ("" not given; None: a CSV's, which carries none).
+    ``record_warnings``: what reading them warned (a cut-off recording), the report's first.
     """
     label = request.label
     orders = list(request.orders)
@@ -352,8 +357,10 @@ def identify_signals(
         # The output's unit as for one input (the input's part of _units is not used).
         (_, output_unit), (_, output_origin) = _units(request, ("", units[1]))
         units, unit_origins = (input_units, output_unit), (input_origin, output_origin)
-        # The inputs share a unit when they are the valves' currents: each against the widest.
-        scale = widest_spread(u) if len(set(input_units)) == 1 else 0.0
+        # Inputs of one unit (both valves' currents) are judged each against the widest: one
+        # that varies by rounding of it is constant. Inputs of units not given may differ.
+        same_unit = all(input_units) and len(set(input_units)) == 1
+        scale = widest_spread(u) if same_unit else 0.0
         for column, name, unit in zip(u.T, names, input_units, strict=True):
             refuse_constant(column, f"input {name}", sources[0], unit, scale)
         refuse_constant(y, "output", sources[1], output_unit)
@@ -404,6 +411,7 @@ def identify_signals(
             for column, unit in zip(u.T, units[0], strict=True)
         ),
         input_names=names if inputs > 1 else None,
+        record_warnings=record_warnings,
     )
     report["record"] = {
         "samples": int(y.size),

@@ -97,7 +97,6 @@ _EXPORTS = {
     **dict.fromkeys(
         (
             "Recording",
-            "TruncatedRecordingWarning",
             "read_camera_frames",
             "read_leading_metadata",
             "read_recording",
@@ -109,6 +108,7 @@ _EXPORTS = {
         "maskless.recording.writing",
     ),
     "is_sensor_name": "maskless.sensor_names",
+    "TruncatedRecordingWarning": "maskless.errors",
 }
 
 # The module's __all__ from before it became a package: every export but the batch writer, its

@@ -51,10 +51,13 @@ class Recording:
         truncated: True if the file ended (or broke) before its footer, so only the messages up
             to the last complete one are present, or if its run was cut short and the file
             finished with what it had (a ``*.partial.mcap`` a stopped run left).
+        cut: when truncated, the sentence its ``TruncatedRecordingWarning`` said (the file, why
+            and how many messages were recovered), for a report to repeat; else None.
     """
 
     messages: dict[str, list[tuple[int, dict[str, Any]]]] = field(default_factory=dict)
     truncated: bool = False
+    cut: str | None = None
 
     def topic_arrays(self, topic: str, field: str) -> tuple[np.ndarray, np.ndarray]:
         """Returns one field of one topic as arrays.
@@ -157,9 +160,10 @@ def read_recording(path: str | PathLike[str], topics: Collection[str] | None = N
     count = _read_json_messages(records, path, topics, recording)
     if records.error is not None:
         recording.truncated = True
-        _warn_truncated(path, records.error, f"{count} complete messages")
+        recording.cut = _warn_truncated(path, records.error, f"{count} complete messages")
     elif recording.truncated:
-        _warn_truncated(path, EndOfFile("its run was cut short"), f"{count} complete messages")
+        stop = EndOfFile("its run was cut short")
+        recording.cut = _warn_truncated(path, stop, f"{count} complete messages")
     return recording
 
 
@@ -208,14 +212,13 @@ def _read_mcap_bytes(path: Path, limit: int = -1) -> bytes:
     return data
 
 
-def _warn_truncated(path: Path, error: Exception, recovered: str) -> None:
+def _warn_truncated(path: Path, error: Exception, recovered: str) -> str:
+    """Warns that ``path`` was read up to a cut; returns the warning's sentence."""
     reason = str(error) or "file ends before its footer"
-    warnings.warn(
-        f"{path}: recording is truncated or corrupt ({reason}); recovered {recovered}",
-        TruncatedRecordingWarning,
-        # Warn at the caller of the public reader, which calls this function.
-        stacklevel=3,
-    )
+    sentence = f"{path}: recording is truncated or corrupt ({reason}); recovered {recovered}"
+    # Warn at the caller of the public reader, which calls this function.
+    warnings.warn(sentence, TruncatedRecordingWarning, stacklevel=3)
+    return sentence
 
 
 class _RecordStream:

@@ -9,6 +9,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import pytest
 
+from maskless.diagrams.background import usable_cores
 from maskless.diagrams.scenario import (
     PaperLqg,
     PaperPlant,
@@ -19,6 +20,15 @@ from maskless.diagrams.scenario import (
 from maskless.diagrams.simulation import simulate
 
 SHORT_RUN_S = 20.0
+
+
+def pytest_xdist_auto_num_workers(config):
+    """One xdist worker per core this process may use (its affinity, as maskless's own pools).
+
+    Not the machine's count, which pytest-xdist takes: in a container or under taskset, more
+    workers would share the cores.
+    """
+    return usable_cores()
 
 
 @pytest.fixture

@@ -316,9 +316,14 @@ def test_a_valve_never_opened_but_for_rounding_is_refused_as_constant():
     u[0, 1] = 1.4e-17
     with pytest.raises(ValueError, match="u column 1 is constant"):
         estimate_hammerstein(u, y, 2, TS)
-    # Too few samples for the parameters, with the count it takes.
-    with pytest.raises(ValueError, match=f"at least {minimum_samples(2, 2)} "):
-        estimate_hammerstein(u[:100], y[:100], 2, TS)
+
+
+def test_too_few_samples_are_refused_with_the_count_the_parameters_take():
+    u, y = _planted_record(1000)
+    # Order 2, two valves of 6 segments: 2 + 2 * (2 + 6 + 1) + 1 = 21 parameters, 10 samples each.
+    assert minimum_samples(2, 2) == 210
+    with pytest.raises(ValueError, match="209 samples are too few: at least 210 "):
+        estimate_hammerstein(u[:209], y[:209], 2, TS)
 
 
 def test_the_model_simulates_as_its_state_space_and_settles_at_its_static_curve():

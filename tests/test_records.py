@@ -1,15 +1,14 @@
 """CSV and MCAP records, part ranges and detrending, with errors naming the file, line and flag."""
 
-import warnings
-
 import numpy as np
 import pytest
 from version1_recording import write_version1_recording
 
 from maskless.analysis.identification.records import (
     VALVE_CURRENTS_FIELDS,
-    cut_recording_notes,
     detrend,
+    identified_before_the_cut,
+    noted_on_refusal,
     parse_range,
     read_aligned_mcap,
     read_csv_signal,
@@ -193,9 +192,30 @@ def test_aligned_signals_with_a_gap_are_refused_naming_where(tmp_path):
         )
 
 
-def test_cut_recording_notes_keep_the_cut_and_pass_other_warnings():
-    with pytest.warns(UserWarning, match="something else"):
-        with cut_recording_notes() as notes:
-            warnings.warn("run.mcap: cut", TruncatedRecordingWarning, stacklevel=1)
-            warnings.warn("something else", UserWarning, stacklevel=1)
-    assert notes == ["run.mcap: cut: identified from what it held before the cut"]
+def test_a_cut_recording_read_for_a_report_is_noted_not_warned(tmp_path):
+    rng = np.random.default_rng(2)
+    whole, cut = tmp_path / "u.mcap", tmp_path / "cut.mcap"
+    _command_recording(whole, rng.uniform(0, 0.165, 40), rng.uniform(0, 0.165, 40))
+    cut.write_bytes(whole.read_bytes()[:-200])
+    # Read plainly, the cut is warned; given a list for the notes, it is noted there instead
+    # (the suite turns an unexpected warning into an error).
+    with pytest.warns(TruncatedRecordingWarning):
+        read_mcap_signals(cut, VALVE_CURRENTS_FIELDS)
+    notes = []
+    ((_, currents),) = read_mcap_signals(cut, VALVE_CURRENTS_FIELDS, cut_notes=notes)
+    (note,) = notes
+    assert note.startswith(f"{cut}: recording is truncated or corrupt") and currents.shape[1] == 2
+    assert identified_before_the_cut(notes) == (
+        f"{note}: identified from what it held before the cut",
+    )
+    read_mcap_signals(whole, VALVE_CURRENTS_FIELDS, cut_notes=notes)
+    assert len(notes) == 1  # a whole file adds none
+
+
+def test_a_refusal_carries_the_notes_and_other_errors_pass_as_they_are():
+    with pytest.raises(RecordError) as refused, noted_on_refusal(["run.mcap: cut"]):
+        raise RecordError("too short")
+    assert refused.value.__notes__ == ["run.mcap: cut"]
+    with pytest.raises(KeyError) as other, noted_on_refusal(["run.mcap: cut"]):
+        raise KeyError("a bug")
+    assert not hasattr(other.value, "__notes__")

@@ -254,7 +254,7 @@ def format_pole(pole: tuple[float, float]) -> str:
 
 
 def is_constant(signal: np.ndarray, scale: float = 0.0) -> bool:
-    """Whether ``signal`` varies by less than ``CONSTANT_RELATIVE_SPREAD`` of its size or scale.
+    """Whether ``signal`` varies by no more than ``CONSTANT_RELATIVE_SPREAD`` of its size or scale.
 
     Its size is its largest magnitude.
 
@@ -285,12 +285,18 @@ def refuse_constant(
         unit: its unit, as given ("" when not given).
         scale: as ``is_constant`` takes it.
     """
-    if is_constant(signal, scale):
-        raise RecordError(
-            f"{source}: the {name} is constant ({_with_unit(signal[0], unit)} over all "
-            f"{signal.size} samples, "
-            f"spread {np.ptp(signal):.3g}): there is nothing to identify from it"
-        )
+    if not is_constant(signal, scale):
+        return
+    spread = np.ptp(signal)
+    held = (
+        f"{_with_unit(signal[0], unit)} over all {signal.size} samples, spread {spread:.3g}"
+        if is_constant(signal)
+        else f"it varies by {spread:.3g} over {signal.size} samples: rounding, beside the "
+        f"{_with_unit(scale, unit)} the widest input spans"
+    )
+    raise RecordError(
+        f"{source}: the {name} is constant ({held}): there is nothing to identify from it"
+    )
 
 
 def excitation(u: np.ndarray, orders: list[int]) -> Excitation:

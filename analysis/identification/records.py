@@ -14,7 +14,12 @@ from pathlib import Path
 
 import numpy as np
 
-from maskless.errors import MissingFileError, RecordError, TruncatedRecordingWarning
+from maskless.errors import (
+    MasklessError,
+    MissingFileError,
+    RecordError,
+    TruncatedRecordingWarning,
+)
 from maskless.recording import current_name
 
 
@@ -104,7 +109,7 @@ VALVE_CURRENTS_FIELDS = "/controller/command:inlet_valve_current_a,outlet_valve_
 
 
 def read_mcap_signals(
-    path: str | Path, *topics_and_fields: str
+    path: str | Path, *topics_and_fields: str, cut_notes: list[str] | None = None
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """Signals from a maskless MCAP recording, read once: (log times in ns, values) for each.
 
@@ -117,6 +122,8 @@ def read_mcap_signals(
         topics_and_fields: each "TOPIC:FIELD", e.g. "/controller/command:inlet_valve_current_a",
             or "TOPIC:FIELD,FIELD,..." for several fields of one topic as columns; the version-1
             names (say "/controller/command:current_a") are accepted too.
+        cut_notes: where given, a cut-off recording's sentence is appended to it, for a report
+            to say, instead of being warned (``TruncatedRecordingWarning``) on stderr.
     """
     wanted = []
     for topic_and_field in topics_and_fields:
@@ -132,10 +139,15 @@ def read_mcap_signals(
     # Here, not at the top: reading MCAP loads mcap, protobuf and OpenCV, which a CSV record skips.
     from maskless.recording import read_recording
 
-    try:
-        recording = read_recording(path, topics={topic for topic, _ in wanted})
-    except ValueError as error:
-        raise RecordError(str(error)) from None
+    with warnings.catch_warnings():
+        if cut_notes is not None:
+            warnings.simplefilter("ignore", TruncatedRecordingWarning)
+        try:
+            recording = read_recording(path, topics={topic for topic, _ in wanted})
+        except ValueError as error:
+            raise RecordError(str(error)) from None
+    if cut_notes is not None and recording.cut is not None:
+        cut_notes.append(recording.cut)
     signals = []
     for topic, names in wanted:
         if topic not in recording.messages:
@@ -147,35 +159,38 @@ def read_mcap_signals(
     return signals
 
 
-@contextlib.contextmanager
-def cut_recording_notes() -> Iterator[list[str]]:
-    """The list, filled as the block ends, of sentences naming the cut-off recordings read in it.
+def identified_before_the_cut(cut_notes: list[str]) -> tuple[str, ...]:
+    """A report's warnings for the cut-off recordings ``cut_notes`` names."""
+    return tuple(f"{note}: identified from what it held before the cut" for note in cut_notes)
 
-    A cut-off recording reads up to its cut with a ``TruncatedRecordingWarning``
-    (``read_recording``). In this block the warning becomes a sentence for the report's warnings,
-    where a script reading its JSON sees it too, instead of a line on stderr. Other warnings pass
-    as they would have.
+
+@contextlib.contextmanager
+def noted_on_refusal(notes: list[str]) -> Iterator[None]:
+    """Adds ``notes`` (say, a cut recording's) to a refusal raised in the block.
+
+    A report says its cut recordings among its warnings; a refusal has no report, so its one line
+    says them instead (the CLI joins an error's notes to it).
     """
-    notes: list[str] = []
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", TruncatedRecordingWarning)
-        yield notes
-    for warning in caught:
-        if issubclass(warning.category, TruncatedRecordingWarning):
-            notes.append(f"{warning.message}: identified from what it held before the cut")
-        else:
-            warnings.warn_explicit(
-                warning.message, warning.category, warning.filename, warning.lineno
-            )
+    try:
+        yield
+    except MasklessError as error:
+        for note in notes:
+            error.add_note(note)
+        raise
 
 
 def read_aligned_mcap(
-    input_path: str | Path, input_field: str, output_path: str | Path, output_field: str
+    input_path: str | Path,
+    input_field: str,
+    output_path: str | Path,
+    output_field: str,
+    cut_notes: list[str] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """(input, output (N,), sample period in s): the samples two recorded signals share.
 
     The input is (N,), or (N, k) for "TOPIC:FIELD,FIELD,..."; the output is one field. A recording
     holding both is read once. The period is the median step between shared log times.
+    ``cut_notes``: as ``read_mcap_signals`` takes it.
 
     Raises:
         RecordError: an output of several fields, fewer than 2 shared samples, or a gap (a step
@@ -183,11 +198,11 @@ def read_aligned_mcap(
     """
     if Path(output_path) == Path(input_path):
         (input_times, u), (output_times, y) = read_mcap_signals(
-            input_path, input_field, output_field
+            input_path, input_field, output_field, cut_notes=cut_notes
         )
     else:
-        ((input_times, u),) = read_mcap_signals(input_path, input_field)
-        ((output_times, y),) = read_mcap_signals(output_path, output_field)
+        ((input_times, u),) = read_mcap_signals(input_path, input_field, cut_notes=cut_notes)
+        ((output_times, y),) = read_mcap_signals(output_path, output_field, cut_notes=cut_notes)
     if y.ndim != 1:  # "TOPIC:FIELD,FIELD" reads columns: several inputs, one output
         raise RecordError(f"{output_path}: {output_field!r}: expected one field (one output)")
     common, input_index, output_index = np.intersect1d(

@@ -417,6 +417,7 @@ def identify(
     | tuple[data_diagnostics.RecordDiagnostics, ...]
     | None = None,
     input_names: tuple[str, ...] | None = None,
+    record_warnings: tuple[str, ...] = (),
 ) -> tuple[dict, list[FittedModel]]:
     """Fits each order and builds the report (the JSON of `maskless identify`).
 
@@ -437,6 +438,8 @@ def identify(
             inputs a tuple, one per input (``diagnose_record`` of that input and the output).
         input_names: with m inputs, their names (default "input 1", ...), keying the per-input
             figures; ignored for one input.
+        record_warnings: what the reading of the record warned (a cut-off recording), first
+            among the report's warnings and in the verdict.
     """
     parts = [estimation, validation]
     inputs = 1 if estimation.u.ndim == 1 else estimation.u.shape[1]
@@ -476,7 +479,7 @@ def identify(
     best = max(
         entries, key=lambda e: np.nan_to_num(e[validation.name]["fit_percent_1step"], nan=-np.inf)
     )
-    warnings = []
+    warnings = list(record_warnings)
     if overlap:
         warnings.append(OVERLAPPING_PARTS_WARNING)
     warnings += [entry["warning"] for entry in entries if "warning" in entry]

@@ -222,7 +222,11 @@ def test_a_child_the_warm_up_left_behind_is_passed_over(tmp_path):
 
 
 def sleep_after_announcing(started, done):
-    started.write_text(str(os.getpid()))
+    # Written under another name and renamed: a reader that sees the file sees its pid (a loaded
+    # machine once read it between the file's creation and its text).
+    partial = started.with_suffix(".partial")
+    partial.write_text(str(os.getpid()))
+    partial.rename(started)
     time.sleep(60)
     done.write_text("done")
 

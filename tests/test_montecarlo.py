@@ -245,8 +245,11 @@ def _running(pid: int) -> bool:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
-    with open(f"/proc/{pid}/stat") as stat:  # a zombie has exited
-        return stat.read().split(") ")[1][0] != "Z"
+    try:
+        with open(f"/proc/{pid}/stat") as stat:  # a zombie has exited
+            return stat.read().split(") ")[1][0] != "Z"
+    except FileNotFoundError:  # reaped between the two looks
+        return False
 
 
 def test_a_folder_of_another_sweep_is_refused_unless_restarted(tmp_path):

@@ -18,7 +18,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from maskless.analysis.identification.data_diagnostics import refuse_constant, widest_spread
+from maskless.analysis.identification.data_diagnostics import (
+    refuse_constant,
+    refuse_unfit_part,
+    widest_spread,
+)
 from maskless.analysis.identification.fit_metrics import fit_percent
 from maskless.analysis.identification.hammerstein import (
     DESIGNED_RECORD_READING,
@@ -196,7 +200,8 @@ def _usable_record(fields, ts: float, order: int, parts, cut_notes: list[str]):
     split = fit_split(designed, *parts, y.size)
     topic, currents = input_field.rsplit(":", 1)
     _refuse_unusable_parts(
-        (u[split.estimation_part], y[split.estimation_part], y[split.validation_part]),
+        u[split.estimation_part],
+        y,
         split,
         order,
         [f"{recording} {topic}:{current}" for current in currents.split(",")],
@@ -206,7 +211,7 @@ def _usable_record(fields, ts: float, order: int, parts, cut_notes: list[str]):
 
 
 def _refuse_unusable_parts(
-    parts, split, order: int, valve_sources: list[str], output_source: str
+    u_est, y, split, order: int, valve_sources: list[str], output_source: str
 ) -> None:
     """A one-line RecordError for parts the fit cannot use, before anything is fitted or written.
 
@@ -215,23 +220,23 @@ def _refuse_unusable_parts(
     outlet never opened), or an output constant over either part, where no fit is defined.
 
     Args:
-        parts: the estimation part's currents (N, 2) and output, and the validation part's output.
+        u_est: the estimation part's currents (N, 2).
+        y: the whole record's output.
         split: the record's ``FitSplit``.
         order: the highest order asked for.
         valve_sources: where each valve's current was read (recording, topic and field).
         output_source: where the output was read.
     """
-    u_est, y_est, y_val = parts
+    estimation = f"the estimation part {split.estimation} ({split.estimation_from})"
+    validation = f"the validation part {split.validation} ({split.validation_from})"
     needed = minimum_samples(order, len(VALVE_NAMES))
-    if y_est.size < needed:
-        raise RecordError(
-            f"the estimation part {split.estimation} ({split.estimation_from}) selects "
-            f"{y_est.size} samples; order {order} with two valves needs at least {needed}"
-        )
-    estimation = f"over the estimation part {split.estimation}"
+    needing = f"order {order} with two valves"
+    refuse_unfit_part(estimation, split.estimation_part, y, output_source, needed, needing)
+    # Judged by simulation, a validation part needs only a spread to divide by.
+    refuse_unfit_part(validation, split.validation_part, y, output_source, 2, "a fit")
     scale = widest_spread(u_est)
     for valve, currents, source in zip(VALVE_NAMES, u_est.T, valve_sources, strict=True):
-        name = f"{valve} valve's current {estimation}"
+        name = f"{valve} valve's current over the estimation part {split.estimation}"
         try:
             refuse_constant(currents, name, source, "A", scale)
         except RecordError as error:
@@ -240,9 +245,6 @@ def _refuse_unusable_parts(
                 "--valve-drive split-range (or independent)"
             )
             raise
-    validation = f"over the validation part {split.validation}"
-    for output, part in ((y_est, estimation), (y_val, validation)):
-        refuse_constant(output, f"output {part}", output_source, "m")
 
 
 def hammerstein_verdict(validation_fit: float, linear_fit: float) -> str:

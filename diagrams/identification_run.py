@@ -19,8 +19,8 @@ import yaml
 from maskless.analysis.identification import report as identification_report
 from maskless.analysis.identification.data_diagnostics import (
     diagnose_record,
-    is_constant,
     refuse_constant,
+    refuse_unfit_part,
     widest_spread,
 )
 from maskless.analysis.identification.diagnostics_text import (
@@ -367,22 +367,12 @@ def identify_signals(
     estimation_slice = parse_range(request.estimation, y.size, label("estimation"))
     validation_slice = parse_range(request.validation, y.size, label("validation"))
     needed = minimum_samples(orders, request.method, inputs)
+    needing = f"order {max(orders)} with {request.method}"
     for name, part in (("estimation", estimation_slice), ("validation", validation_slice)):
         flag = label(name)
-        if part.stop - part.start < needed:
-            raise RecordError(
-                f"{flag} selects {part.stop - part.start} samples; order {max(orders)} with "
-                f"{request.method} needs at least {needed}"
-            )
+        refuse_unfit_part(flag, part, y, sources[1], needed, needing)
         if request.k_step is not None and request.k_step >= part.stop - part.start:
             raise RecordError(f"{label('k_step')} {request.k_step}: longer than the {flag} part")
-        # Every fit figure divides by the output's spread over the part (the naive baseline's
-        # from its second sample): a constant output leaves them undefined.
-        if is_constant(y[part][1:]):
-            raise RecordError(
-                f"{flag} selects samples {part.start}:{part.stop} of {sources[1]}, "
-                "where the output is constant: no fit is defined on it"
-            )
     offsets = _detrend(u, y, request.detrend)
     parts = [
         Part("estimation", offsets.u[estimation_slice], offsets.y[estimation_slice]),

@@ -143,7 +143,10 @@ def test_identify_hammerstein_refuses_parts_it_cannot_fit(recording, tmp_path, c
         hammerstein_run, "read_two_valve_record", lambda *_, **__: (u, held, period_s)
     )
     line = _refusal(argv, capsys)
-    assert "/fusion/estimate:head_height_m: the output over the validation part 0.6:1 is " in line
+    assert line.startswith("maskless identify: error: the validation part 0.6:1 (the default) ")
+    assert line.endswith(
+        "/fusion/estimate:head_height_m, where the output is constant: no fit is defined on it"
+    )
     # A closed loop's outlet: never opened, but for one sample of 1.4e-17 A. Before, that sample
     # passed for variation and the fit made up the outlet's map.
     rounding = u.copy()

@@ -299,6 +299,31 @@ def refuse_constant(
     )
 
 
+def refuse_unfit_part(
+    what: str, part: slice, output: np.ndarray, output_source: str, needed: int, needing: str
+) -> None:
+    """A one-line RecordError for a part of a record no fit can use.
+
+    Args:
+        what: the part as the refusal names it (its flag, or the part and where it came from).
+        part: the part, a slice of ``output``.
+        output: the whole record's output.
+        output_source: where the output came from (a file, TOPIC:FIELD).
+        needed: the fewest samples the part may hold, for ``needing`` (say "order 2 with pem").
+        needing: what needs them.
+    """
+    size = part.stop - part.start
+    if size < needed:
+        raise RecordError(f"{what} selects {size} samples; {needing} needs at least {needed}")
+    # Every fit figure divides by the output's spread over the part (the naive baseline's from
+    # its second sample): a constant output leaves them undefined.
+    if is_constant(output[part][1:]):
+        raise RecordError(
+            f"{what} selects samples {part.start}:{part.stop} of {output_source}, where the "
+            "output is constant: no fit is defined on it"
+        )
+
+
 def excitation(u: np.ndarray, orders: list[int]) -> Excitation:
     """The order of excitation of the input ``u`` (one part), against each of ``orders``.
 

@@ -38,7 +38,8 @@ from maskless.analysis.identification.model_file import (
 from maskless.analysis.identification.records import (
     VALVE_CURRENTS_FIELDS,
     identified_before_the_cut,
-    noted_on_refusal,
+    named_fields,
+    noting_cuts,
     read_aligned_mcap,
 )
 from maskless.analysis.identification.report import EXPLAINS_SIM
@@ -118,8 +119,7 @@ def identify_hammerstein_to_files(
             than 1 % off its sample period, parts out of range or parts the fit cannot use
             (``_refuse_unusable_parts``); it says a cut-off recording too.
     """
-    cut: list[str] = []
-    with noted_on_refusal(cut):
+    with noting_cuts() as cut:
         u, y, split = _usable_record(
             (recording, input_field, output_recording, output_field),
             ts,
@@ -198,13 +198,13 @@ def _usable_record(fields, ts: float, order: int, parts, cut_notes: list[str]):
         raise RecordError(f"--ts {ts}: the recording's samples are {period_s:.6g} s apart")
     designed = read_leading_metadata(recording).get(FIT_SPLIT_METADATA)
     split = fit_split(designed, *parts, y.size)
-    topic, currents = input_field.rsplit(":", 1)
+    topic, currents = named_fields(input_field)
     _refuse_unusable_parts(
         u[split.estimation_part],
         y,
         split,
         order,
-        [f"{recording} {topic}:{current}" for current in currents.split(",")],
+        [f"{recording} {topic}:{current}" for current in currents],
         f"{output_recording or recording} {output_field}",
     )
     return u, y, split

@@ -38,7 +38,8 @@ from maskless.analysis.identification.records import (
     Detrended,
     detrend,
     identified_before_the_cut,
-    noted_on_refusal,
+    named_fields,
+    noting_cuts,
     parse_range,
     parts_overlap,
     read_aligned_mcap,
@@ -154,7 +155,7 @@ def read_record(
             raise RecordError(
                 f"{label('ts')} {request.ts}: the recording's samples are {period_s:.6g} s apart"
             )
-        topic, fields = _named_fields(input_field)
+        topic, fields = named_fields(input_field)
         input_units = tuple(_field_unit(f"{topic}:{field}") for field in fields)
         units = (input_units[0] if u.ndim == 1 else input_units, _field_unit(output_field))
         return u, y, units
@@ -180,14 +181,8 @@ def _input_columns(request: IdentificationRequest) -> list[str | None]:
     column = request.input_column
     if column is None:
         return [None]
-    names = _named_fields(column)[1]
+    names = named_fields(column)[1]
     return names if len(names) > 1 else [column]
-
-
-def _named_fields(column: str) -> tuple[str, list[str]]:
-    """(topic, names) of "TOPIC:A,B" (MCAP fields) or ("", names) of "A,B" (CSV columns)."""
-    topic, _, names = column.rpartition(":")
-    return topic, names.split(",")
 
 
 def _stack_columns(path: Path, columns: list[str]) -> np.ndarray:
@@ -289,8 +284,7 @@ def identify_record(request: IdentificationRequest) -> "IdentificationRun":
     """
     if request.input is None:
         raise RecordError(f"{request.label('input')}: expected the record to read")
-    cut: list[str] = []
-    with noted_on_refusal(cut):
+    with noting_cuts() as cut:
         u, y, units = read_record(request, cut)
         return identify_signals(u, y, request, units, identified_before_the_cut(cut))
 

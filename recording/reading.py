@@ -126,7 +126,9 @@ class _StrictBytesIO(io.BytesIO):
 _READ_ERRORS = (McapError, ValueError, EOFError, struct.error)
 
 
-def read_recording(path: str | PathLike[str], topics: Collection[str] | None = None) -> Recording:
+def read_recording(
+    path: str | PathLike[str], topics: Collection[str] | None = None, warn_if_cut: bool = True
+) -> Recording:
     """Reads a recording, recovering what it can from a cut-off file.
 
     The file is read front to back with a streaming reader (no index or footer needed). At the
@@ -143,6 +145,8 @@ def read_recording(path: str | PathLike[str], topics: Collection[str] | None = N
         topics: Decode only these topics' messages (JSON decoding is most of the reading), named
             as the reader presents them (current names); the others are listed with no messages.
             All of them when None.
+        warn_if_cut: warn a cut (``TruncatedRecordingWarning``); without, the caller says
+            ``cut`` itself (`maskless identify`, in its report).
 
     Returns:
         The messages by topic, in file order, with ``log_time`` in simulated ns, under the current
@@ -158,12 +162,12 @@ def read_recording(path: str | PathLike[str], topics: Collection[str] | None = N
     records = _RecordStream(_read_mcap_bytes(path))
     recording = Recording()
     count = _read_json_messages(records, path, topics, recording)
-    if records.error is not None:
+    if records.error is not None or recording.truncated:
         recording.truncated = True
-        recording.cut = _warn_truncated(path, records.error, f"{count} complete messages")
-    elif recording.truncated:
-        stop = EndOfFile("its run was cut short")
-        recording.cut = _warn_truncated(path, stop, f"{count} complete messages")
+        stop = records.error or EndOfFile("its run was cut short")
+        recording.cut = _cut_sentence(path, stop, f"{count} complete messages")
+        if warn_if_cut:
+            _warn_truncated(recording.cut)
     return recording
 
 
@@ -212,13 +216,15 @@ def _read_mcap_bytes(path: Path, limit: int = -1) -> bytes:
     return data
 
 
-def _warn_truncated(path: Path, error: Exception, recovered: str) -> str:
-    """Warns that ``path`` was read up to a cut; returns the warning's sentence."""
+def _cut_sentence(path: Path, error: Exception, recovered: str) -> str:
+    """That ``path`` was read up to a cut: why, and what was recovered."""
     reason = str(error) or "file ends before its footer"
-    sentence = f"{path}: recording is truncated or corrupt ({reason}); recovered {recovered}"
+    return f"{path}: recording is truncated or corrupt ({reason}); recovered {recovered}"
+
+
+def _warn_truncated(sentence: str) -> None:
     # Warn at the caller of the public reader, which calls this function.
     warnings.warn(sentence, TruncatedRecordingWarning, stacklevel=3)
-    return sentence
 
 
 class _RecordStream:
@@ -320,7 +326,7 @@ def read_camera_frames(path: str | PathLike[str]) -> dict[str, list[CameraFrame]
         reader.read(record)
     if records.error is not None:
         count = sum(len(camera_frames) for camera_frames in reader.frames.values())
-        _warn_truncated(path, records.error, f"{count} complete camera frames")
+        _warn_truncated(_cut_sentence(path, records.error, f"{count} complete camera frames"))
     return reader.frames
 
 

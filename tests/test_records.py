@@ -8,7 +8,7 @@ from maskless.analysis.identification.records import (
     VALVE_CURRENTS_FIELDS,
     detrend,
     identified_before_the_cut,
-    noted_on_refusal,
+    noting_cuts,
     parse_range,
     read_aligned_mcap,
     read_csv_signal,
@@ -213,9 +213,11 @@ def test_a_cut_recording_read_for_a_report_is_noted_not_warned(tmp_path):
 
 
 def test_a_refusal_carries_the_notes_and_other_errors_pass_as_they_are():
-    with pytest.raises(RecordError) as refused, noted_on_refusal(["run.mcap: cut"]):
+    with pytest.raises(RecordError) as refused, noting_cuts() as notes:
+        notes.append("run.mcap: cut")
         raise RecordError("too short")
     assert refused.value.__notes__ == ["run.mcap: cut"]
-    with pytest.raises(KeyError) as other, noted_on_refusal(["run.mcap: cut"]):
+    with pytest.raises(KeyError) as other, noting_cuts() as notes:
+        notes.append("run.mcap: cut")
         raise KeyError("a bug")
     assert not hasattr(other.value, "__notes__")

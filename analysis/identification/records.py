@@ -7,7 +7,6 @@ output of different lengths is refused before any fitting starts.
 import contextlib
 import csv
 import math
-import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,7 +17,6 @@ from maskless.errors import (
     MasklessError,
     MissingFileError,
     RecordError,
-    TruncatedRecordingWarning,
 )
 from maskless.recording import current_name
 
@@ -139,13 +137,12 @@ def read_mcap_signals(
     # Here, not at the top: reading MCAP loads mcap, protobuf and OpenCV, which a CSV record skips.
     from maskless.recording import read_recording
 
-    with warnings.catch_warnings():
-        if cut_notes is not None:
-            warnings.simplefilter("ignore", TruncatedRecordingWarning)
-        try:
-            recording = read_recording(path, topics={topic for topic, _ in wanted})
-        except ValueError as error:
-            raise RecordError(str(error)) from None
+    try:
+        recording = read_recording(
+            path, topics={topic for topic, _ in wanted}, warn_if_cut=cut_notes is None
+        )
+    except ValueError as error:
+        raise RecordError(str(error)) from None
     if cut_notes is not None and recording.cut is not None:
         cut_notes.append(recording.cut)
     signals = []
@@ -165,18 +162,25 @@ def identified_before_the_cut(cut_notes: list[str]) -> tuple[str, ...]:
 
 
 @contextlib.contextmanager
-def noted_on_refusal(notes: list[str]) -> Iterator[None]:
-    """Adds ``notes`` (say, a cut recording's) to a refusal raised in the block.
+def noting_cuts() -> Iterator[list[str]]:
+    """The ``cut_notes`` for the reads in the block, added to a refusal raised in it.
 
     A report says its cut recordings among its warnings; a refusal has no report, so its one line
     says them instead (the CLI joins an error's notes to it).
     """
+    notes: list[str] = []
     try:
-        yield
+        yield notes
     except MasklessError as error:
         for note in notes:
             error.add_note(note)
         raise
+
+
+def named_fields(column: str) -> tuple[str, list[str]]:
+    """(topic, names) of "TOPIC:A,B" (MCAP fields) or ("", names) of "A,B" (CSV columns)."""
+    topic, _, names = column.rpartition(":")
+    return topic, names.split(",")
 
 
 def read_aligned_mcap(

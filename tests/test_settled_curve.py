@@ -214,6 +214,17 @@ def test_each_ends_profile_is_its_best_fit_over_the_other_end(seed, end):
     assert checked >= 10
 
 
+def test_the_basis_of_pairs_each_at_its_own_currents_is_each_pairs_basis_alone():
+    # A profile's points are refined in one batch, each at its own play's spool positions.
+    rng = np.random.default_rng(0)
+    currents = rng.uniform(0.0, 1.0, (5, 12))
+    starts, saturations = rng.uniform(0.0, 0.4, 5), rng.uniform(0.6, 1.4, 5)
+    batched = settled_curve.basis_grid(currents, starts, saturations)
+    for k in range(5):
+        alone = settled_curve.basis_grid(currents[k], starts[k : k + 1], saturations[k : k + 1])
+        np.testing.assert_array_equal(batched[k], alone[0])
+
+
 def _levels_through_play(seed, half_width_a, count=120, noise=1e-3):
     """(levels, the sum of squares the planted curves leave in them): seen through the play.
 

@@ -643,18 +643,19 @@ class _CoarseProfile:
         """Each point's other end searched within ``bounds(rows)`` at its play (golden section).
 
         ``ends_of(rows, other)`` gives the (start, saturation) pairs of those points; the search
-        ends ``tolerance`` (a fraction of the range) from its best.
+        ends ``tolerance`` (a fraction of the range) from its best. Every point is searched in
+        one batch, each at its own play's spool positions: searched play by play, the many small
+        least-squares calls cost more in numpy's per-call overhead than in arithmetic.
         """
-        for play in np.unique(self.best_play[np.isfinite(self.lowest)]):
-            rows = np.flatnonzero((self.best_play == play) & np.isfinite(self.lowest))
-            x = spool_of(play)
+        rows = np.flatnonzero(np.isfinite(self.lowest))
+        positions = np.stack([spool_of(play) for play in self.best_play[rows]])
 
-            def sums(chosen, rows=rows, x=x):
-                return _lowest_sums(x, target, held, ends_of(rows, chosen)).min(axis=1)
+        def sums(chosen):
+            return _lowest_sums(positions, target, held, ends_of(rows, chosen)).min(axis=1)
 
-            low, high = bounds(rows)
-            refined = _golden_section(sums, low, high, tolerance)
-            self.lowest[rows] = np.minimum(self.lowest[rows], refined)
+        low, high = bounds(rows)
+        refined = _golden_section(sums, low, high, tolerance)
+        self.lowest[rows] = np.minimum(self.lowest[rows], refined)
 
 
 def _golden_section(cost, low, high, tolerance=1e-7):
@@ -752,7 +753,10 @@ def _best_of(spool_of, plays, target, held, ends, best=None):
 
 
 def _lowest_sums(x, target, held, ends) -> np.ndarray:
-    """(len(ends), 2) the lowest sum of squares per (start, saturation) and sign (``_SIGNS``)."""
+    """(len(ends), 2) the lowest sum of squares per (start, saturation) and sign (``_SIGNS``).
+
+    ``x`` is (N,) spool positions at the levels, or (len(ends), N), each pair's own.
+    """
     ends = np.asarray(ends, float)
     held = np.column_stack(held) if held else np.zeros((target.outputs.size, 0))
     candidates = basis_grid(x, ends[:, 0], ends[:, 1])
@@ -778,6 +782,10 @@ def _basis(x, start, saturation) -> np.ndarray:
 
 
 def basis_grid(x, starts, saturations) -> np.ndarray:
-    """(K, N, 2) ``_basis`` at each (start, saturation) of (K,) ``starts`` and ``saturations``."""
-    t = np.clip((x[None, :] - starts[:, None]) / (saturations - starts)[:, None], 0.0, 1.0)
+    """(K, N, 2) ``_basis`` at each (start, saturation) of (K,) ``starts`` and ``saturations``.
+
+    ``x`` is (N,) currents shared by every pair, or (K, N), each pair's own.
+    """
+    x = x if x.ndim == 2 else x[None, :]
+    t = np.clip((x - starts[:, None]) / (saturations - starts)[:, None], 0.0, 1.0)
     return np.stack([1.0 - (1.0 - t) ** 2, t * t], axis=-1)

@@ -15,7 +15,8 @@ Choices, and why:
   at gives one point, an hour's record some dozen settled ones per valve, so a flexible shape
   would follow the noise. It leaves s with any slope from 0 (a quadratic start) up, and covers
   a valve whose effect grows gently and then fast (a bladder's lift: choked flow in against a
-  leak out) or linearly.
+  leak out) or linearly. A cubic, and a third step hinged at the span's middle, were tried
+  and lost over the benchmark's population (README, "Tried and not kept").
 - **s and c are profiled over a grid**, the shape's coefficients fitted by non-negative least
   squares at each grid point, so no local search can wander along the trade-off between s and
   the curve's first slope; the grid is refined around its best point. Each valve's sign (does

@@ -649,6 +649,8 @@ class _CoarseProfile:
         least-squares calls cost more in numpy's per-call overhead than in arithmetic.
         """
         rows = np.flatnonzero(np.isfinite(self.lowest))
+        if rows.size == 0:
+            return
         positions = np.stack([spool_of(play) for play in self.best_play[rows]])
 
         def sums(chosen):

@@ -41,6 +41,7 @@ from maskless.analysis.identification.records import (
     named_fields,
     noting_cuts,
     read_aligned_mcap,
+    refuse_other_period,
 )
 from maskless.analysis.identification.report import EXPLAINS_SIM
 from maskless.diagrams.fit_split import fit_split
@@ -194,8 +195,7 @@ def _usable_record(fields, ts: float, order: int, parts, cut_notes: list[str]):
     """
     recording, input_field, output_recording, output_field = fields
     u, y, period_s = read_two_valve_record(*fields, cut_notes=cut_notes)
-    if abs(period_s - ts) > 0.01 * period_s:
-        raise RecordError(f"--ts {ts}: the recording's samples are {period_s:.6g} s apart")
+    refuse_other_period("--ts", ts, period_s)
     designed = read_leading_metadata(recording).get(FIT_SPLIT_METADATA)
     split = fit_split(designed, *parts, y.size)
     topic, currents = named_fields(input_field)

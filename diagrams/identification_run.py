@@ -44,6 +44,7 @@ from maskless.analysis.identification.records import (
     parts_overlap,
     read_aligned_mcap,
     read_csv_signal,
+    refuse_other_period,
 )
 from maskless.analysis.identification.report import FittedModel, Part
 from maskless.analysis.identification.subspace import minimum_samples as subspace_minimum
@@ -72,8 +73,6 @@ UNIT_GIVEN, UNIT_FROM_FIELD, UNIT_CSV_DEFAULT, UNIT_NOT_GIVEN = (
     "assumed: a CSV carries no units; the robot's CSV convention",
     "not given",
 )
-# How far --ts may be from a recording's own sample period before it is refused.
-_TS_TOLERANCE = 0.01
 
 
 @dataclass
@@ -151,10 +150,7 @@ def read_record(
         u, y, period_s = read_aligned_mcap(
             request.input, input_field, output_path, output_field, cut_notes
         )
-        if abs(period_s - request.ts) > _TS_TOLERANCE * period_s:
-            raise RecordError(
-                f"{label('ts')} {request.ts}: the recording's samples are {period_s:.6g} s apart"
-            )
+        refuse_other_period(label("ts"), request.ts, period_s)
         topic, fields = named_fields(input_field)
         input_units = tuple(_field_unit(f"{topic}:{field}") for field in fields)
         units = (input_units[0] if u.ndim == 1 else input_units, _field_unit(output_field))

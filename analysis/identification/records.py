@@ -156,6 +156,19 @@ def read_mcap_signals(
     return signals
 
 
+# How far --ts may be from a recording's own sample period before it is refused.
+TS_TOLERANCE = 0.01
+
+
+def refuse_other_period(flag: str, ts: float, period_s: float) -> None:
+    """A RecordError where ``ts`` (s, given as ``flag``) is off the recording's own period.
+
+    Off: by more than ``TS_TOLERANCE`` of ``period_s`` (s).
+    """
+    if abs(period_s - ts) > TS_TOLERANCE * period_s:
+        raise RecordError(f"{flag} {ts}: the recording's samples are {period_s:.6g} s apart")
+
+
 def identified_before_the_cut(cut_notes: list[str]) -> tuple[str, ...]:
     """A report's warnings for the cut-off recordings ``cut_notes`` names."""
     return tuple(f"{note}: identified from what it held before the cut" for note in cut_notes)
